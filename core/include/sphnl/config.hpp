@@ -1,0 +1,78 @@
+#pragma once
+// RunConfig: every run-time choice of a simulation, with the key names of the
+// table in DESIGN.md (JSON file and `--set key=value` use the same names).
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json_fwd.hpp>
+
+namespace sphnl {
+
+enum class GridderKind : std::uint8_t { A, B, C, D };            // paper §2.3
+enum class CellOrderKind : std::uint8_t { sort_x, sort_xy, sort_xyz, hilbert };  // §2.4
+enum class ListKind : std::uint8_t { cll, vlc, vlx };         // §2.5
+enum class Lattice : std::uint8_t { bcc, cubic };
+
+const char* to_string(GridderKind g);
+const char* to_string(CellOrderKind o);
+const char* to_string(ListKind l);
+const char* to_string(Lattice l);
+
+/// Thrown for any invalid user input; the message names the key or path and
+/// what is allowed.
+struct ConfigError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct RunConfig {
+  // size: exactly one of particles / dx is used (dx > 0 wins when set)
+  long particles = 31239;
+  double dx = 0;
+  // duration: steps > 0 wins over end_time
+  long steps = 0;
+  double end_time = 0.5;
+  double output_interval = 0.05;  // simulated seconds between snapshots; 0 = final only
+  // physics (PHYSICS.md)
+  double h_coefficient = 0.866025;
+  double cfl = 0.3;
+  int euler_every = 50;
+  double sound_speed_coef = 10;
+  bool clamp_boundary_density = false;
+  double viscosity_alpha = 0.1;
+  double xsph_epsilon = 0.5;
+  Lattice lattice = Lattice::bcc;
+  double max_lost_fraction = 0.1;  // stop when more than this fraction of the fluid has left
+  // execution
+  int threads = 1;
+  bool progress = true;
+  // neighbour search
+  GridderKind gridder = GridderKind::B;
+  CellOrderKind cell_order = CellOrderKind::sort_x;
+  bool reorder = true;
+  int reorder_every = 1;
+  int max_parts_in_cell = 0;   // gridder C row length; 0 = sized from h/dx
+  ListKind list = ListKind::cll;
+  int list_steps = 1;          // n_s: C of VL_C, X of VL_X
+  double skin_factor = 0;      // nu of Delta h; 0 = paper default (1.2 VL_C, 1.0 VL_X)
+  bool kgc = false;            // kernel gradient correction: the second loop per step
+  bool verify_lists = false;   // check every step that no interacting pair is missing
+
+  double effective_skin_factor() const {
+    if (skin_factor > 0) return skin_factor;
+    return list == ListKind::vlc ? 1.2 : 1.0;
+  }
+};
+
+/// Builds a RunConfig from a JSON object, validating every key.
+RunConfig config_from_json(const nlohmann::json& j);
+/// The full configuration as JSON (every key, defaults included).
+nlohmann::json config_to_json(const RunConfig& c);
+/// Parses one `key=value` override into `j` (value read as JSON when it parses,
+/// else as a string, so `gridder=B` and `reorder=false` both work).
+void apply_override(nlohmann::json& j, const std::string& key_value);
+/// Names of every accepted key, for error messages.
+std::vector<std::string> config_keys();
+
+}  // namespace sphnl

@@ -1,0 +1,44 @@
+#pragma once
+// Gridder: which particles are in each cell (paper §2.3, "particles in cells").
+// Four algorithms implement it, each in its own header: A SlidingVector,
+// B PreconditionedVector, C StaticMatrix, D LinkedList. Pair sources only ask
+// a gridder for the particles of a cell, so every gridder yields the same pairs.
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "sphnl/config.hpp"
+
+namespace sphnl {
+
+class Gridder {
+ public:
+  virtual ~Gridder() = default;
+  virtual const char* name() const = 0;
+  /// Places every particle i with cell_key[i] != kNoCell into cell cell_key[i];
+  /// keys lie in [0, num_keys).
+  virtual void build(std::span<const std::uint32_t> cell_key, std::uint32_t num_keys) = 0;
+  /// Writes the particle indices of cell `key` to `out` (room for
+  /// max_cell_count() entries) and returns how many.
+  virtual std::uint32_t gather_cell(std::uint32_t key, std::uint32_t* out) const = 0;
+  /// Largest number of particles in one cell after the last build.
+  std::uint32_t max_cell_count() const { return max_cell_count_; }
+  /// Every gridded particle, in cell-key order (the reordering permutation).
+  virtual void cell_order_permutation(std::vector<std::uint32_t>& order) const;
+  /// Bytes allocated for this gridder's structures (capacity x element size).
+  virtual std::size_t bytes() const = 0;
+
+ protected:
+  std::uint32_t num_keys_ = 0;
+  std::uint32_t max_cell_count_ = 0;
+};
+
+struct GridderOptions {
+  int max_parts_in_cell = 0;  // gridder C only
+};
+
+std::unique_ptr<Gridder> make_gridder(GridderKind kind, const GridderOptions& options = {});
+
+}  // namespace sphnl

@@ -1,0 +1,48 @@
+#pragma once
+// The 3-D cubic spline kernel (paper eq. 1, Monaghan & Lattanzio 1985) and the
+// constants of the pair interaction, precomputed once per smoothing length h.
+#include <cmath>
+#include <numbers>
+
+namespace sphnl {
+
+struct CubicSpline {
+  double h = 0, inv_h = 0;
+  double a2 = 0;                 // 1/(pi h^3): the 3-D normalisation of W
+  double aa = 0;                 // 1/(pi h^4)
+  double c1 = 0, d1 = 0, c2 = 0; // F = dW/dr / r coefficients
+  double support2 = 0;           // (2h)^2: a pair interacts when r^2 < support2
+  double inv_w_dp = 0;           // 1/W(dp), dp = h/1.5: tensile correction f = W/W(dp)
+
+  static constexpr double kMinR2 = 1e-18;  // coincident particles never interact
+
+  CubicSpline() = default;
+  explicit CubicSpline(double smoothing_length) {
+    h = smoothing_length;
+    inv_h = 1.0 / h;
+    a2 = 1.0 / (std::numbers::pi * h * h * h);
+    aa = 1.0 / (std::numbers::pi * h * h * h * h);
+    c1 = -3.0 * aa;
+    d1 = 9.0 * aa / 4.0;
+    c2 = -3.0 * aa / 4.0;
+    support2 = 4.0 * h * h;
+    inv_w_dp = 1.0 / w(h / 1.5);
+  }
+
+  /// W(r), eq. 1.
+  double w(double r) const {
+    const double q = r * inv_h;
+    if (q <= 1.0) return a2 * (1.0 - 1.5 * q * q + 0.75 * q * q * q);
+    if (q <= 2.0) { const double t = 2.0 - q; return 0.25 * a2 * t * t * t; }
+    return 0.0;
+  }
+  /// F(r) = (dW/dr)/r, so that grad_a W_ab = F * r_ab.
+  double f(double r) const {
+    const double q = r * inv_h;
+    if (q <= 1.0) return (c1 * q + d1 * q * q) / r;
+    if (q <= 2.0) { const double t = 2.0 - q; return c2 * t * t / r; }
+    return 0.0;
+  }
+};
+
+}  // namespace sphnl

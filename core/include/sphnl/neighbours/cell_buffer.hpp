@@ -1,0 +1,36 @@
+#pragma once
+// CellBuffer: the particles of one home cell and its 13 forward neighbour
+// cells, copied into small contiguous arrays. The distance filter and the pair
+// kernel then run on L1-resident data whatever the gridder and particle order;
+// accumulated results are added back to the particles once per home cell.
+#include <cstdint>
+#include <vector>
+
+#include "sphnl/particle_view.hpp"
+#include "sphnl/particles.hpp"
+
+namespace sphnl {
+
+class CellBuffer {
+ public:
+  void reserve(std::size_t capacity);
+  std::size_t capacity() const { return index_.size(); }
+  /// Copies the fields named by `mask` of particles index[0..count) of `ps`.
+  void gather(const ParticleSet& ps, const std::uint32_t* index, std::uint32_t count, unsigned mask);
+  /// Adds the accumulators named by `mask` into the accumulator arrays of
+  /// `target` (the particles' own, or a thread's private copy).
+  void scatter_add(const ParticleView& target, unsigned mask) const;
+  ParticleView view() { return view_; }
+  std::uint32_t size() const { return size_; }
+  std::uint32_t* index() { return index_.data(); }
+  std::size_t bytes() const;
+
+ private:
+  std::uint32_t size_ = 0;
+  std::vector<std::uint32_t> index_;
+  // one array per field; indices into `arrays_` are fixed by the .cpp
+  std::vector<std::vector<double>> arrays_;
+  ParticleView view_;
+};
+
+}  // namespace sphnl

@@ -1,0 +1,46 @@
+#pragma once
+// ParticleGrid: the "neighbour list" phase shared by every pair source (paper
+// Table I): cells division (CellGrid), cell index of every particle (CellOrder),
+// particles in cells (Gridder), and optionally reordering the particle arrays
+// into cell order (§2.4).
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "sphnl/config.hpp"
+#include "sphnl/grid.hpp"
+#include "sphnl/gridders/gridder.hpp"
+#include "sphnl/orderings/cell_order.hpp"
+#include "sphnl/particles.hpp"
+
+namespace sphnl {
+
+class ParticleGrid {
+ public:
+  ParticleGrid(const Box& domain, CellOrderKind order, GridderKind gridder, const GridderOptions& options);
+
+  /// Grids `ps` with cells of side `cell_size`; when `reorder` is set, first
+  /// permutes every particle array into cell order (out particles last) and
+  /// grids again. Returns true when particles were permuted.
+  bool build(ParticleSet& ps, double cell_size, bool reorder);
+
+  const CellGrid& grid() const { return grid_; }
+  const CellOrder& order() const { return *order_; }
+  const Gridder& gridder() const { return *gridder_; }
+  const std::vector<std::uint32_t>& cell_keys() const { return keys_; }
+  /// Bytes of the gridding structures: gridder, ordering tables, the key of
+  /// every particle, and the reordering buffers once reordering has been used.
+  std::size_t bytes() const;
+
+ private:
+  Box domain_;
+  CellGrid grid_;
+  std::unique_ptr<CellOrder> order_;
+  std::unique_ptr<Gridder> gridder_;
+  std::vector<std::uint32_t> keys_;
+  // reordering buffers (allocated on first use, reused afterwards)
+  std::vector<std::uint32_t> permutation_, keys_scratch_, u32_scratch_;
+  std::vector<double> f64_scratch_;
+};
+
+}  // namespace sphnl

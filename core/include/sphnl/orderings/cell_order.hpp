@@ -1,0 +1,66 @@
+#pragma once
+// CellOrder: how the cells of a CellGrid are numbered (paper §2.4). The number
+// of a cell is its position in the sweep of the pair loop and in the particle
+// order after reordering, so it decides memory locality.
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "sphnl/config.hpp"
+#include "sphnl/grid.hpp"
+#include "sphnl/particles.hpp"
+
+namespace sphnl {
+
+inline constexpr std::uint32_t kNoCell = 0xFFFFFFFFu;  // particle not gridded (out)
+
+class CellOrder {
+ public:
+  virtual ~CellOrder() = default;
+  virtual const char* name() const = 0;
+  /// Prepares for a grid; after it, keys lie in [0, num_keys()).
+  void setup(const CellGrid& grid);
+  /// Number of distinct keys, padded cells included (Z-order pads to powers of two).
+  std::uint32_t num_keys() const { return num_keys_; }
+  /// Key of the cell at integer coordinates (all in range).
+  virtual std::uint32_t key(int cx, int cy, int cz) const = 0;
+  /// Key of every particle's cell; kNoCell for particles that are `out`. The loop
+  /// lives in each ordering so the key computation inlines (its cost is the
+  /// "~100x" claim of Fig. 9).
+  virtual void compute_keys(const CellGrid& grid, const ParticleSet& ps, std::span<std::uint32_t> keys) const = 0;
+  /// Integer coordinates of every key that is a real cell (packed cx | cy<<21 |
+  /// cz<<42), kNoCellCoords for padding keys: lets pair sources sweep cells in
+  /// key order without each ordering having to invert its key.
+  std::span<const std::uint64_t> key_coords() const { return key_coords_; }
+  static constexpr std::uint64_t kNoCellCoords = ~std::uint64_t{0};
+  /// Bytes of this ordering's own tables (the padded key space included).
+  std::size_t bytes() const { return key_coords_.capacity() * sizeof(std::uint64_t); }
+
+ protected:
+  /// Stores what key() needs for this grid; returns the number of keys.
+  virtual std::uint32_t prepare(const CellGrid& grid) = 0;
+
+ private:
+  std::uint32_t num_keys_ = 0;
+  std::vector<std::uint64_t> key_coords_;
+};
+
+std::unique_ptr<CellOrder> make_cell_order(CellOrderKind kind);
+
+/// Shared loop for compute_keys: applies an inlinable key function to every particle.
+template <class KeyFn>
+void compute_keys_with(const CellGrid& grid, const ParticleSet& ps, std::span<std::uint32_t> keys, KeyFn key) {
+  const std::size_t n = ps.size();
+  const double* x = ps.x.data();
+  const double* y = ps.y.data();
+  const double* z = ps.z.data();
+  const ParticleType* type = ps.type.data();
+  for (std::size_t i = 0; i < n; ++i) {
+    keys[i] = type[i] == ParticleType::out
+                  ? kNoCell
+                  : key(grid.coord(x[i], 0), grid.coord(y[i], 1), grid.coord(z[i], 2));
+  }
+}
+
+}  // namespace sphnl

@@ -1,0 +1,77 @@
+#include "sphnl/neighbours/cell_buffer.hpp"
+
+#include <algorithm>
+
+namespace sphnl {
+
+namespace {
+// Field slots in CellBuffer::arrays_.
+enum Slot : int {
+  X, Y, Z, IS_FLUID, MASS, RHO, VX, VY, VZ, PR, TR, C,
+  L0, L1, L2, L3, L4, L5,
+  AX, AY, AZ, DRHO, UX, UY, UZ,
+  M0, M1, M2, M3, M4, M5,
+  NUM_SLOTS
+};
+
+template <class T>
+void gather_field(double* __restrict dst, const T* __restrict src, const std::uint32_t* __restrict index, std::uint32_t n) {
+  for (std::uint32_t k = 0; k < n; ++k) dst[k] = src[index[k]];
+}
+void scatter_field(double* __restrict dst, const double* __restrict src, const std::uint32_t* __restrict index, std::uint32_t n) {
+  for (std::uint32_t k = 0; k < n; ++k) dst[index[k]] += src[k];
+}
+}  // namespace
+
+void CellBuffer::reserve(std::size_t capacity) {
+  if (capacity <= index_.size()) return;
+  index_.resize(capacity);
+  arrays_.resize(NUM_SLOTS);
+  for (auto& a : arrays_) a.resize(capacity);
+  auto p = [this](int s) { return arrays_[s].data(); };
+  view_.x = p(X); view_.y = p(Y); view_.z = p(Z); view_.is_fluid = p(IS_FLUID);
+  view_.mass = p(MASS); view_.rho = p(RHO); view_.vx = p(VX); view_.vy = p(VY); view_.vz = p(VZ);
+  view_.p_over_rho2 = p(PR); view_.tensile_r = p(TR); view_.sound_speed = p(C);
+  view_.ax = p(AX); view_.ay = p(AY); view_.az = p(AZ); view_.drho = p(DRHO);
+  view_.ux = p(UX); view_.uy = p(UY); view_.uz = p(UZ);
+  for (int k = 0; k < 6; ++k) { view_.kgc[k] = p(L0 + k); view_.m_kgc[k] = p(M0 + k); }
+}
+
+void CellBuffer::gather(const ParticleSet& ps, const std::uint32_t* index, std::uint32_t count, unsigned mask) {
+  size_ = count;
+  if (index != index_.data()) std::copy(index, index + count, index_.data());
+  const std::uint32_t* idx = index_.data();
+  auto g = [&](int slot, const std::vector<double>& src) { gather_field(arrays_[slot].data(), src.data(), idx, count); };
+  auto zero = [&](int slot) { std::fill_n(arrays_[slot].data(), count, 0.0); };
+  g(X, ps.x); g(Y, ps.y); g(Z, ps.z); g(IS_FLUID, ps.is_fluid);
+  if (mask & (fields::mass_rho | fields::force_in)) { g(MASS, ps.mass); g(RHO, ps.rho); }
+  if (mask & fields::force_in) {
+    g(VX, ps.vx); g(VY, ps.vy); g(VZ, ps.vz);
+    g(PR, ps.p_over_rho2); g(TR, ps.tensile_r); g(C, ps.sound_speed);
+  }
+  if (mask & fields::kgc_l)
+    for (int k = 0; k < 6; ++k) g(L0 + k, ps.kgc[k]);
+  if (mask & fields::force_out)
+    for (int s = AX; s <= UZ; ++s) zero(s);
+  if (mask & fields::kgc_m_out)
+    for (int s = M0; s <= M5; ++s) zero(s);
+}
+
+void CellBuffer::scatter_add(const ParticleView& t, unsigned mask) const {
+  const std::uint32_t* idx = index_.data();
+  auto s = [&](double* dst, int slot) { scatter_field(dst, arrays_[slot].data(), idx, size_); };
+  if (mask & fields::force_out) {
+    s(t.ax, AX); s(t.ay, AY); s(t.az, AZ); s(t.drho, DRHO);
+    s(t.ux, UX); s(t.uy, UY); s(t.uz, UZ);
+  }
+  if (mask & fields::kgc_m_out)
+    for (int k = 0; k < 6; ++k) s(t.m_kgc[k], M0 + k);
+}
+
+std::size_t CellBuffer::bytes() const {
+  std::size_t b = index_.capacity() * sizeof(std::uint32_t);
+  for (const auto& a : arrays_) b += a.capacity() * sizeof(double);
+  return b;
+}
+
+}  // namespace sphnl

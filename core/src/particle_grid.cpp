@@ -1,0 +1,37 @@
+#include "sphnl/neighbours/particle_grid.hpp"
+
+namespace sphnl {
+
+ParticleGrid::ParticleGrid(const Box& domain, CellOrderKind order, GridderKind gridder, const GridderOptions& options)
+    : domain_(domain), order_(make_cell_order(order)), gridder_(make_gridder(gridder, options)) {}
+
+bool ParticleGrid::build(ParticleSet& ps, double cell_size, bool reorder) {
+  if (cell_size != grid_.cell_size) {  // Verlet lists change 2H at every rebuild
+    grid_ = CellGrid(domain_, cell_size);
+    order_->setup(grid_);
+  }
+  keys_.resize(ps.size());
+  order_->compute_keys(grid_, ps, keys_);
+  gridder_->build(keys_, order_->num_keys());
+  if (!reorder) return false;
+
+  // New index -> old index: gridded particles in cell order, then the out ones.
+  gridder_->cell_order_permutation(permutation_);
+  for (std::size_t i = 0; i < ps.size(); ++i)
+    if (keys_[i] == kNoCell) permutation_.push_back(static_cast<std::uint32_t>(i));
+  ps.permute(permutation_, f64_scratch_, u32_scratch_);
+  keys_scratch_.resize(keys_.size());
+  for (std::size_t k = 0; k < keys_.size(); ++k) keys_scratch_[k] = keys_[permutation_[k]];
+  keys_.swap(keys_scratch_);
+  gridder_->build(keys_, order_->num_keys());
+  return true;
+}
+
+std::size_t ParticleGrid::bytes() const {
+  return gridder_->bytes() + order_->bytes() +
+         (keys_.capacity() + permutation_.capacity() + keys_scratch_.capacity() + u32_scratch_.capacity()) *
+             sizeof(std::uint32_t) +
+         f64_scratch_.capacity() * sizeof(double);
+}
+
+}  // namespace sphnl

@@ -1,0 +1,270 @@
+"""The results format of sphnl (docs/CONTRACTS.md): experiment definitions,
+benchmark names and the Google Benchmark JSON written by sphnl_bench.
+
+Shared by experiments/run.py (which runs the sweeps and checks they are
+complete), the plotting scripts and tests/python/fake_bench.py.
+"""
+import itertools
+import json
+import os
+import pathlib
+import re
+import tempfile
+
+import pandas as pd
+
+SIZES = ("tiny", "default", "full")
+# Name segments of each benchmark family, in the order of CONTRACTS.md §2.
+FAMILY_KEYS = {
+    "step": ["n", "gridder", "order", "reorder", "list", "ns", "kgc", "threads",
+             "lattice", "h_coefficient"],
+    "cellindex": ["order", "n"],
+    "search": ["n", "gridder", "order", "reorder", "threads"],
+}
+STEP_AXES = FAMILY_KEYS["step"][:8]            # required axes of a "step" sweep
+NAME_KEY = {"h_coefficient": "hcoef"}          # sweep axis -> name segment key
+AXIS_OF_KEY = {v: k for k, v in NAME_KEY.items()}
+# Segments Google Benchmark itself may append to a name (->Iterations() etc.).
+GB_SEGMENT_KEYS = {"iterations", "repetitions", "min_time", "min_warmup_time"}
+# Top-level fields of a Google Benchmark 1.7.1 entry that are not user counters.
+GB_FIELDS = {"name", "family_index", "per_family_instance_index", "run_name",
+             "run_type", "repetitions", "repetition_index", "threads",
+             "iterations", "real_time", "cpu_time", "time_unit",
+             "error_occurred", "error_message", "aggregate_name",
+             "aggregate_unit", "label", "big_o", "rms"}
+COUNTER_RENAMES = {"n": "n_particles"}         # counter `n` vs name segment `n`
+TIME_UNITS = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}
+_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+
+
+class ResultsError(Exception):
+    """A results or experiment file that cannot be used; the message names it."""
+
+
+def parse_value(text):
+    """'31239' -> 31239, '0.87' -> 0.87, 'sort_x' -> 'sort_x'."""
+    if re.fullmatch(r"[-+]?\d+", text):
+        return int(text)
+    if _NUMBER.fullmatch(text):
+        return float(text)
+    return text
+
+
+def format_value(value):
+    if isinstance(value, float) and value.is_integer():
+        return str(int(value))
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def parse_run_name(run_name):
+    """Split 'step/n:31239/gridder:B/...' into ('step', {'n': 31239, 'gridder': 'B', ...}).
+
+    Segments Google Benchmark adds ('real_time', 'iterations:1', ...) are
+    dropped; 'hcoef' is returned under its axis name 'h_coefficient'.
+    """
+    family, *segments = run_name.split("/")
+    params = {}
+    for seg in segments:
+        key, sep, value = seg.partition(":")
+        if sep and key not in GB_SEGMENT_KEYS:
+            params[AXIS_OF_KEY.get(key, key)] = parse_value(value)
+    return family, params
+
+
+def axes_in_order(family, axes):
+    known = [k for k in FAMILY_KEYS.get(family, []) if k in axes]
+    return known + [k for k in axes if k not in known]
+
+
+def format_run_name(family, point):
+    """Inverse of parse_run_name, segments in the contract's order."""
+    segs = [f"{NAME_KEY.get(k, k)}:{format_value(point[k])}"
+            for k in axes_in_order(family, point)]
+    return "/".join([family] + segs)
+
+
+def sweep_points(exp, size):
+    """Every point of the cross product exp['sweep'][size], as dicts."""
+    sweep = exp["sweep"][size]
+    axes = axes_in_order(exp["benchmark"], list(sweep))
+    return [dict(zip(axes, combo))
+            for combo in itertools.product(*(sweep[a] for a in axes))]
+
+
+def point_key(params, axes):
+    """Comparable identity of a sweep point restricted to `axes`."""
+    def norm(v):
+        return round(float(v), 9) if isinstance(v, (int, float)) else v
+    return tuple((a, norm(params.get(a))) for a in sorted(axes))
+
+
+# ---------------------------------------------------------------- experiments
+def validate_experiment(exp, path):
+    where = str(path)
+    for key in ("id", "benchmark", "sweep", "window_steps", "repetitions", "claims"):
+        if key not in exp:
+            raise ResultsError(f"{where}: missing key '{key}'")
+    if exp["id"] != pathlib.Path(path).stem:
+        raise ResultsError(f"{where}: id '{exp['id']}' differs from the file name")
+    if exp.get("uses"):
+        return exp
+    if exp["benchmark"] not in FAMILY_KEYS:
+        raise ResultsError(f"{where}: unknown benchmark '{exp['benchmark']}', "
+                           f"expected one of {sorted(FAMILY_KEYS)}")
+    for size in SIZES:
+        sweep = exp["sweep"].get(size)
+        if sweep is None:
+            raise ResultsError(f"{where}: sweep has no size '{size}'")
+        need = STEP_AXES if exp["benchmark"] == "step" else FAMILY_KEYS[exp["benchmark"]]
+        missing = [a for a in need if a not in sweep]
+        if missing:
+            raise ResultsError(f"{where}: sweep.{size} lacks axes {missing}")
+        for field in ("window_steps", "repetitions"):
+            if size not in exp[field]:
+                raise ResultsError(f"{where}: {field} has no size '{size}'")
+    return exp
+
+
+def load_experiments(exp_dir):
+    """{id: definition} of every experiments/*.json, validated."""
+    out = {}
+    for path in sorted(pathlib.Path(exp_dir).glob("*.json")):
+        try:
+            exp = json.loads(path.read_text())
+        except json.JSONDecodeError as e:
+            raise ResultsError(f"{path}: not valid JSON ({e})") from None
+        out[exp.get("id", path.stem)] = validate_experiment(exp, path)
+    for exp in out.values():
+        if exp.get("uses") and exp["uses"] not in out:
+            raise ResultsError(f"{exp['id']}: uses unknown experiment '{exp['uses']}'")
+    return out
+
+
+# ------------------------------------------------------------------- results
+def read_benchmark_json(path):
+    """The parsed Google Benchmark JSON of one experiment; clear error otherwise."""
+    try:
+        doc = json.loads(pathlib.Path(path).read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise ResultsError(f"{path}: cannot read benchmark JSON ({e})") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("benchmarks"), list):
+        raise ResultsError(f"{path}: not a Google Benchmark JSON (no 'benchmarks' list)")
+    return doc
+
+
+def missing_points(path, exp, size):
+    """Names of the sweep points of `exp` that `path` does not list (raises on a bad file)."""
+    doc = read_benchmark_json(path)
+    axes = list(exp["sweep"][size])
+    have = set()
+    for entry in doc["benchmarks"]:
+        if entry.get("run_type", "iteration") == "iteration":
+            family, params = parse_run_name(entry.get("run_name", entry.get("name", "")))
+            if family == exp["benchmark"]:
+                have.add(point_key(params, axes))
+    return [format_run_name(exp["benchmark"], p) for p in sweep_points(exp, size)
+            if point_key(p, axes) not in have]
+
+
+def entry_rows(doc, experiment):
+    """One dict per iteration entry: parameters, GB fields and counters."""
+    rows = []
+    for entry in doc["benchmarks"]:
+        if entry.get("run_type", "iteration") != "iteration":
+            continue
+        run_name = entry.get("run_name", entry["name"])
+        family, params = parse_run_name(run_name)
+        row = {"experiment": experiment, "family": family, "run_name": run_name}
+        row.update(params)
+        for key, value in entry.items():
+            if key in GB_FIELDS:
+                continue
+            if isinstance(value, (int, float)) and not isinstance(value, bool):
+                col = COUNTER_RENAMES.get(key, key)
+                row[col + "_counter" if col in params else col] = value
+        scale = TIME_UNITS.get(entry.get("time_unit", "ns"), 1e-9)
+        row.update(repetition_index=entry.get("repetition_index", 0),
+                   iterations=entry.get("iterations", 1),
+                   real_time_s=entry.get("real_time", float("nan")) * scale,
+                   cpu_time_s=entry.get("cpu_time", float("nan")) * scale,
+                   error_occurred=bool(entry.get("error_occurred", False)),
+                   error_message=entry.get("error_message", ""))
+        rows.append(row)
+    return rows
+
+
+def load_run(run_dir):
+    """Every <experiment>.json of a run folder as one DataFrame, one row per
+    benchmark iteration entry (machine.json and hidden temp files ignored)."""
+    run_dir = pathlib.Path(run_dir)
+    if not run_dir.is_dir():
+        raise ResultsError(f"{run_dir}: no such results folder")
+    rows = []
+    for path in sorted(run_dir.glob("*.json")):
+        if path.name != "machine.json":
+            rows += entry_rows(read_benchmark_json(path), path.stem)
+    df = pd.DataFrame(rows)
+    if df.empty:
+        df = pd.DataFrame(columns=["experiment", "family", "run_name",
+                                   "repetition_index", "error_occurred"])
+    return df
+
+
+_NON_PARAM = {"experiment", "family", "run_name", "error_message", "error_occurred"}
+_ALL_KEYS = list(dict.fromkeys(sum(FAMILY_KEYS.values(), [])))
+
+
+def param_columns(df):
+    """Columns that identify a configuration: the name segments of the
+    contract, plus any other text-valued segment found in the names."""
+    return ["experiment", "family"] + [k for k in _ALL_KEYS if k in df.columns] + \
+        [c for c in df.columns if c not in _ALL_KEYS and c not in _NON_PARAM
+         and df[c].dtype == object]
+
+
+def medians(df):
+    """One row per configuration: the median over repetitions of every numeric
+    column, plus `reps` (repetitions kept) and the convenience columns
+    `t` (s per step), `mem_mb` (nl_bytes / 1e6) and `N` (particles simulated).
+    Entries that reported an error are dropped."""
+    if df.empty:
+        return df
+    ok = df[~df["error_occurred"]]
+    keys = param_columns(ok)
+    numeric = [c for c in ok.columns if c not in keys and c not in _NON_PARAM
+               and c != "repetition_index" and pd.api.types.is_numeric_dtype(ok[c])]
+    grouped = ok.groupby(keys, dropna=False, sort=True)
+    med = grouped[numeric].median().reset_index()
+    med["reps"] = grouped.size().values
+    if "s_per_step" in med:
+        med["t"] = med["s_per_step"]
+    elif "window_steps" in med:
+        med["t"] = med["real_time_s"] / med["window_steps"]
+    if "nl_bytes" in med:
+        med["mem_mb"] = med["nl_bytes"] / 1e6
+    if "n" in med:
+        med["N"] = med["n_particles"] if "n_particles" in med else med["n"]
+        med["N"] = med["N"].fillna(med["n"]).astype(float)
+    return med
+
+
+def errors(df):
+    """(run_name, message) of every entry that reported an error."""
+    if df.empty:
+        return []
+    bad = df[df["error_occurred"]]
+    return sorted(set(zip(bad["run_name"], bad["error_message"])))
+
+
+def write_atomic(path, data):
+    """Write text or bytes to `path` through a temp file in the same folder."""
+    path = pathlib.Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data.encode() if isinstance(data, str) else data)
+        os.replace(tmp, path)
+    except BaseException:
+        os.unlink(tmp)
+        raise
