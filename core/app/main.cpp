@@ -1,13 +1,58 @@
+// sphnl: the command-line front end. Subcommands: run (simulate the dam break
+// of paper §2.2 and write outputs), neighbours (neighbour search on any point
+// cloud), help, --version.
 #include <cstdio>
-#include "sphnl/simulation.hpp"
-int main() {
-  sphnl::RunConfig c;
-  c.steps = 20;
-  sphnl::Simulation sim(c);
-  std::printf("N=%zu fluid=%zu dx=%g h=%g\n", sim.particles().size(), sim.case_info().n_fluid, sim.case_info().dx, sim.case_info().h);
-  for (int s = 0; s < 20; ++s) sim.step();
-  auto& t = sim.phase_times();
-  std::printf("t=%g dt=%g nl=%g force=%g upd=%g  per particle-step %.3g us, inter/particle %.1f cand/particle %.1f\n", sim.time(), sim.last_dt(),
-    t.neighbour_list, t.force, t.update, t.total()/20/sim.particles().size()*1e6,
-    2.0*sim.neighbour_stats().interactions/20/sim.particles().size(), 2.0*sim.neighbour_stats().candidates/20/sim.particles().size());
+#include <cstring>
+#include <string>
+
+#include "sphnl/run.hpp"
+#if __has_include("sphnl/neighbours_tool.hpp")
+#include "sphnl/neighbours_tool.hpp"
+#define SPHNL_HAVE_NEIGHBOURS_TOOL 1
+#endif
+
+namespace {
+
+const char* const kUsage =
+    "usage: sphnl <command> [options]\n"
+    "\n"
+    "commands:\n"
+    "  run         run the dam break with obstacle (Dominguez et al. 2011, section 2.2):\n"
+    "              sphnl run [--config FILE.json] [--set key=value]... [--out DIR] [--quiet]\n"
+    "  neighbours  neighbour search on a point cloud:\n"
+    "              sphnl neighbours --input points.csv --radius R [...] --out counts.csv\n"
+    "  help        this text; `sphnl <command> --help` for the options of a command\n"
+    "  --version   git revision and build type\n";
+
+int neighbours(int argc, char** argv) {
+#ifdef SPHNL_HAVE_NEIGHBOURS_TOOL
+  return sphnl::neighbours_main(argc, argv);
+#else
+  (void)argc;
+  (void)argv;
+  std::fprintf(stderr, "sphnl: the 'neighbours' command is not available in this build\n");
+  return 2;
+#endif
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    std::fputs(kUsage, stderr);
+    return 2;
+  }
+  const std::string command = argv[1];
+  if (command == "run") return sphnl::run_main(argc - 1, argv + 1);
+  if (command == "neighbours") return neighbours(argc - 1, argv + 1);
+  if (command == "help" || command == "--help" || command == "-h") {
+    std::fputs(kUsage, stdout);
+    return 0;
+  }
+  if (command == "--version" || command == "version") {
+    std::printf("sphnl %s (%s build, %s)\n", SPHNL_GIT_REVISION, SPHNL_BUILD_TYPE, SPHNL_COMPILER);
+    return 0;
+  }
+  std::fprintf(stderr, "sphnl: unknown command or option '%s'\n\n%s", argv[1], kUsage);
+  return 2;
 }

@@ -109,14 +109,21 @@ std::size_t count_particles(const CaseGeometry& g, double dx, Lattice lattice) {
 }
 
 double dx_for_particles(const CaseGeometry& g, std::size_t target, Lattice lattice) {
-  // The count falls monotonically (up to lattice steps) with dx: bisect on log dx.
-  double lo = 1e-4, hi = 0.2;
-  for (int it = 0; it < 40; ++it) {
+  if (target == 0) throw std::invalid_argument("particle count must be positive");
+  // The count falls monotonically (up to lattice steps) with dx, roughly as
+  // dx^-2.7 (boundary surface ~ dx^-2, fluid volume ~ dx^-3): guess a bracket
+  // from one count, widen it until it holds, then bisect on log dx.
+  const auto count = [&](double d) { return count_particles(g, d, lattice); };
+  const double probe = 0.02;
+  const double guess = probe * std::pow(static_cast<double>(count(probe)) / static_cast<double>(target), 1.0 / 2.7);
+  double lo = guess / 1.1, hi = guess * 1.1;
+  while (count(lo) <= target && lo > 1e-5) lo /= 1.5;
+  while (count(hi) > target && hi < 1.0) hi *= 1.5;
+  while (hi / lo > 1 + 1e-5) {
     const double mid = std::sqrt(lo * hi);
-    if (count_particles(g, mid, lattice) > target) lo = mid; else hi = mid;
-    if (hi / lo < 1 + 1e-6) break;
+    if (count(mid) > target) lo = mid; else hi = mid;
   }
-  const auto off = [&](double d) { return std::fabs(static_cast<double>(count_particles(g, d, lattice)) - static_cast<double>(target)); };
+  const auto off = [&](double d) { return std::fabs(static_cast<double>(count(d)) - static_cast<double>(target)); };
   return off(lo) < off(hi) ? lo : hi;
 }
 

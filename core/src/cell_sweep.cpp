@@ -19,7 +19,7 @@ std::pair<int, int> slots(unsigned outputs) {
 
 void CellSweep::prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads) {
   if (static_cast<int>(scratch_.size()) < threads) scratch_.resize(threads);
-  const std::size_t capacity = 14 * static_cast<std::size_t>(gridder.max_cell_count()) + 1;
+  const std::size_t capacity = 14 * static_cast<std::size_t>(gridder.max_cell_count()) + kFilterSlack;
   const unsigned outputs = mask & (fields::force_out | fields::kgc_m_out);
   const auto [first, last] = slots(outputs);
   for (int t = 0; t < threads; ++t) {

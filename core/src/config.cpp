@@ -161,6 +161,10 @@ RunConfig config_from_json(const json& j) {
 json config_to_json(const RunConfig& c) {
   json j = json::object();
   for (const auto& k : key_table()) j[k.name] = k.write(c);
+  // Of each pair of alternatives only the one in use, so that the echo can be
+  // fed back as a config file.
+  j.erase(c.dx > 0 ? "particles" : "dx");
+  j.erase(c.steps > 0 ? "end_time" : "steps");
   return j;
 }
 

@@ -38,21 +38,111 @@ Simulation::Simulation(const RunConfig& config, Case c, const PhysicsParams& phy
 }
 
 void Simulation::init() {
-  if (config_.list != ListKind::cll)
-    throw ConfigError(std::string("list '") + to_string(config_.list) + "' is not implemented yet; use cll");
+  if (config_.list_steps < 1)
+    throw ConfigError("list_steps must be >= 1 (n_s, the steps a Verlet list is meant to live); got " +
+                      std::to_string(config_.list_steps));
   GridderOptions options;
   options.max_parts_in_cell = config_.max_parts_in_cell;
+  options.dx = case_.dx, options.h = phys_.h(), options.particles_per_dx3 = config_.lattice == Lattice::bcc ? 2.0 : 1.0;
   grid_ = std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, options);
   force_ops_.assign(config_.threads, ForceOp<false>{&phys_, 0});
   force_ops_kgc_.assign(config_.threads, ForceOp<true>{&phys_, 0});
+  kgc_ops_.assign(config_.threads, KgcMatrixOp{&phys_});
+  no_ops_.assign(config_.threads, NoOp{});
+  if (config_.verify_lists && config_.list != ListKind::cll)
+    verify_grid_ = std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, options);
   update_derived(phys_, ps_, 0, ps_.size());
 }
 
 void Simulation::build_neighbours() {
+  neighbours_ready_ = true;
+  if (config_.list == ListKind::cll) {
+    const bool reorder = config_.reorder && stats_.builds % static_cast<std::uint64_t>(config_.reorder_every) == 0;
+    grid_->build(ps_, 2.0 * phys_.h(), reorder);
+    ++stats_.builds;
+    stats_.max_steps_per_list = 1;
+    return;
+  }
+  // A particle that went out must leave every list at once (the paper's
+  // criteria only watch motion): rebuild, and count it apart.
+  const bool forced = list_valid_ && lost_ != lost_at_build_;
+  bool rebuild = !list_valid_ || forced;
+  if (!rebuild && config_.list == ListKind::vlc) {
+    // VL_C (§2.5): the list serves exactly C steps.
+    rebuild = list_age_ >= static_cast<std::uint64_t>(config_.list_steps);
+  } else if (!rebuild) {
+    // VL_X (§2.5): valid while no particle has moved more than dh/2 since the
+    // build (then no pair can have closed from beyond 2H = 2h + dh to below 2h).
+    const double limit2 = 0.25 * skin_ * skin_;
+    const std::size_t n = ps_.size();
+    const double *x = ps_.x.data(), *y = ps_.y.data(), *z = ps_.z.data();
+    const double *x0 = x_build_.data(), *y0 = y_build_.data(), *z0 = z_build_.data();
+    double max_d2 = 0;
+#pragma omp simd reduction(max : max_d2)
+    for (std::size_t i = 0; i < n; ++i) {
+      const double dx = x[i] - x0[i], dy = y[i] - y0[i], dz = z[i] - z0[i];
+      max_d2 = std::max(max_d2, dx * dx + dy * dy + dz * dz);
+    }
+    rebuild = max_d2 > limit2;
+  }
+  if (rebuild) {
+    build_verlet_list();
+    if (forced) ++stats_.forced_rebuilds;
+  }
+  ++list_age_;
+  ++stats_.list_steps;
+  stats_.max_steps_per_list = std::max(stats_.max_steps_per_list, list_age_);
+}
+
+double Simulation::list_skin() const {
+  // dh = nu (2 Vmax n_s dt) (§2.5). Before any step (or after restore) there is
+  // no dt yet: use eq. 7 without forces or viscosity, CFL h / c0, and at least
+  // the speed that free fall reaches over the list's life, g n_s dt (a flow
+  // starting at rest has Vmax = 0, which would give a list with no skin).
+  const double ns = static_cast<double>(config_.list_steps);
+  const bool first = dt_ <= 0;
+  const double dt = first ? phys_.cfl * phys_.h() / phys_.c0 : dt_;
+  const double vmax = first ? std::max(max_speed_, phys_.gravity * ns * dt) : max_speed_;
+  return config_.effective_skin_factor() * 2.0 * vmax * ns * dt;
+}
+
+void Simulation::build_verlet_list() {
+  skin_ = list_skin();
+  const double cell = 2.0 * phys_.h() + skin_;  // 2H = 2h + dh
   const bool reorder = config_.reorder && stats_.builds % static_cast<std::uint64_t>(config_.reorder_every) == 0;
-  grid_->build(ps_, 2.0 * phys_.h(), reorder);
+  grid_->build(ps_, cell, reorder);
+  verlet_.build(*grid_, ps_, cell * cell, config_.threads);
+  if (config_.list == ListKind::vlx) {  // positions after any reordering: indices match the list's
+    x_build_.assign(ps_.x.begin(), ps_.x.end());
+    y_build_.assign(ps_.y.begin(), ps_.y.end());
+    z_build_.assign(ps_.z.begin(), ps_.z.end());
+  }
+  list_valid_ = true;
+  list_age_ = 0;
+  lost_at_build_ = lost_;
   ++stats_.builds;
-  stats_.max_steps_per_list = 1;
+  stats_.skin = skin_;
+  stats_.list_pairs = verlet_.pairs();
+  stats_.list_bytes = verlet_.list_bytes();
+  stats_.max_list_bytes = std::max(stats_.max_list_bytes, stats_.list_bytes);
+}
+
+std::uint64_t Simulation::count_list_misses() {
+  if (config_.list == ListKind::cll) return 0;
+  if (!verify_grid_) {
+    GridderOptions options;
+    options.max_parts_in_cell = config_.max_parts_in_cell;
+    verify_grid_ = std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, options);
+  }
+  verify_grid_->build(ps_, 2.0 * phys_.h(), false);
+  const std::uint64_t truth = verify_cll_.for_each_pair(*verify_grid_, ps_, no_ops_, phys_.kernel.support2).interactions;
+  // Every listed pair that passes the 2h filter is a true pair and is listed
+  // once, so the shortfall is exactly the pairs the list misses.
+  const std::uint64_t found = verlet_.for_each_pair(ps_, no_ops_, phys_.kernel.support2).interactions;
+  if (found > truth)
+    throw std::logic_error("Verlet list yields " + std::to_string(found) + " pairs, more than the " +
+                           std::to_string(truth) + " pairs within 2h: a pair is listed twice");
+  return truth - found;
 }
 
 void Simulation::compute_forces() {
@@ -60,7 +150,15 @@ void Simulation::compute_forces() {
   PairCounts counts;
   double mu = 0;
   if (config_.kgc) {
-    throw ConfigError("kgc is not implemented yet");
+    // Second loop (Bonet & Lok 1999): M_a over the same pairs (CLL searches the
+    // cells again; a Verlet list is walked again), L_a = M_a^-1, then the main
+    // loop with corrected gradients.
+    clear_kgc_matrices(ps_);
+    for_each_pair(kgc_ops_);
+    stats_.kgc_fallbacks += invert_kgc_matrices(ps_);
+    for (auto& op : force_ops_kgc_) op.max_mu = 0;
+    counts = for_each_pair(force_ops_kgc_);
+    for (const auto& op : force_ops_kgc_) mu = std::max(mu, op.max_mu);
   } else {
     for (auto& op : force_ops_) op.max_mu = 0;
     counts = for_each_pair(force_ops_);
@@ -138,8 +236,13 @@ void Simulation::update(double dt) {
 
 void Simulation::step() {
   Stopwatch sw;
-  build_neighbours();
+  if (!neighbours_ready_) build_neighbours();
   times_.neighbour_list += sw.lap();
+  if (config_.verify_lists && config_.list != ListKind::cll) {  // a check, not part of any phase
+    stats_.vl_misses += count_list_misses();
+    ++stats_.verified_steps;
+    sw.lap();
+  }
   compute_forces();
   times_.force += sw.lap();
   dt_ = time_step();
@@ -147,13 +250,46 @@ void Simulation::step() {
   times_.update += sw.lap();
   time_ += dt_;
   ++steps_;
+  neighbours_ready_ = false;
 }
 
-std::size_t Simulation::neighbour_bytes() const { return grid_->bytes(); }
+void Simulation::restore(const ParticleSet& state, double time, long steps, std::size_t lost) {
+  const std::size_t n = state.size();
+  for (auto [dst, src] : {std::pair{&ps_.x, &state.x}, {&ps_.y, &state.y}, {&ps_.z, &state.z}, {&ps_.vx, &state.vx},
+                          {&ps_.vy, &state.vy}, {&ps_.vz, &state.vz}, {&ps_.rho, &state.rho},
+                          {&ps_.vx_prev, &state.vx_prev}, {&ps_.vy_prev, &state.vy_prev},
+                          {&ps_.vz_prev, &state.vz_prev}, {&ps_.rho_prev, &state.rho_prev}, {&ps_.mass, &state.mass}})
+    dst->assign(src->begin(), src->begin() + static_cast<std::ptrdiff_t>(n));
+  ps_.type.assign(state.type.begin(), state.type.end());
+  ps_.id.assign(state.id.begin(), state.id.end());
+  update_derived(phys_, ps_, 0, n);
+  double vmax2 = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    if (ps_.type[i] == ParticleType::fluid)
+      vmax2 = std::max(vmax2, ps_.vx[i] * ps_.vx[i] + ps_.vy[i] * ps_.vy[i] + ps_.vz[i] * ps_.vz[i]);
+  max_speed_ = std::sqrt(vmax2);
+  time_ = time;
+  steps_ = steps;
+  lost_ = lost;
+  dt_ = 0;
+  times_ = PhaseTimes{};
+  stats_ = NeighbourStats{};
+  list_valid_ = neighbours_ready_ = false;  // indices and positions changed: Verlet lists are rebuilt
+}
+
+std::size_t Simulation::neighbour_bytes() const {
+  // Verlet lists add the list (offsets + indices) and VL_X's positions at the build.
+  return grid_->bytes() + verlet_.list_bytes() +
+         (x_build_.capacity() + y_build_.capacity() + z_build_.capacity()) * sizeof(double);
+}
 
 double Simulation::total_mass() const {
+  // Summed in id order, so that reordering (which permutes memory) cannot
+  // change the last bits of the total.
+  std::vector<double> by_id(ps_.size());
+  for (std::size_t i = 0; i < ps_.size(); ++i) by_id[ps_.id[i]] = ps_.mass[i];
   double m = 0;
-  for (double v : ps_.mass) m += v;
+  for (double v : by_id) m += v;
   return m;
 }
 

@@ -11,6 +11,8 @@
 #include "sphnl/neighbours/cell_linked_list.hpp"
 #include "sphnl/neighbours/pair_counts.hpp"
 #include "sphnl/neighbours/particle_grid.hpp"
+#include "sphnl/neighbours/verlet_list.hpp"
+#include "sphnl/kgc.hpp"
 #include "sphnl/pair_kernel.hpp"
 #include "sphnl/physics.hpp"
 
@@ -30,6 +32,20 @@ struct NeighbourStats {
   std::uint64_t candidates = 0;      // candidate pairs tested in the main loop
   std::uint64_t interactions = 0;    // pairs evaluated in the main loop
   std::uint64_t max_steps_per_list = 0;
+  // Verlet lists (paper §2.5); all zero for the cell-linked list
+  std::uint64_t list_steps = 0;         // steps that used a list (sum of list lifetimes)
+  std::uint64_t forced_rebuilds = 0;    // builds forced because a particle went out (not by C / dh/2)
+  std::uint64_t list_pairs = 0;         // pairs stored in the current list
+  std::size_t list_bytes = 0;           // bytes of the current list (offsets + indices)
+  std::size_t max_list_bytes = 0;       // largest list_bytes seen
+  double skin = 0;                      // dh of the current list (m)
+  std::uint64_t vl_misses = 0;          // pairs with r < 2h missing from the list (verify_lists only)
+  std::uint64_t verified_steps = 0;     // steps checked by verify_lists
+  std::uint64_t kgc_fallbacks = 0;      // fluid particles whose L_a fell back to I (summed over steps)
+  /// Mean steps per list: lifetimes of the lists built (CLL: 1).
+  double mean_steps_per_list() const {
+    return builds ? static_cast<double>(list_steps ? list_steps : builds) / static_cast<double>(builds) : 0.0;
+  }
 };
 
 class Simulation {
@@ -41,6 +57,11 @@ class Simulation {
 
   /// Advances one time step.
   void step();
+  /// Replaces the particle state (positions, velocities, densities, both
+  /// Verlet levels, masses, types, ids) with `state`, in `state`'s order, and
+  /// sets the clock; timers and counters restart from zero and every
+  /// neighbour structure is rebuilt at the next step.
+  void restore(const ParticleSet& state, double time, long steps, std::size_t lost);
 
   const RunConfig& config() const { return config_; }
   const PhysicsParams& physics() const { return phys_; }
@@ -65,11 +86,21 @@ class Simulation {
   /// run-time dispatch per pass); public for tests of pair sources.
   template <class Op>
   PairCounts for_each_pair(std::vector<Op>& ops);
-  /// Rebuilds the neighbour structures for the current positions (phase 1).
+  /// Prepares the pair source for the current positions (phase 1): CLL grids
+  /// again; VL_C rebuilds every C = list_steps steps; VL_X rebuilds when a
+  /// particle has moved more than dh/2 since the build. step() calls it unless
+  /// it was already called since the last step (tests inspect the pairs first).
   void build_neighbours();
+  /// Counts the pairs with r < 2h that the current Verlet list misses, by a
+  /// cell-linked search of the same positions (verify_lists; 0 for CLL).
+  std::uint64_t count_list_misses();
+  /// dh of VL_C / VL_X for a list that should live `list_steps` steps
+  /// (paper §2.5): nu 2 Vmax n_s dt, with Vmax and dt of the last step.
+  double list_skin() const;
 
  private:
   void init();
+  void build_verlet_list();
   void compute_forces();
   void update(double dt);
   double time_step() const;
@@ -80,6 +111,22 @@ class Simulation {
   ParticleSet& ps_;
   std::unique_ptr<ParticleGrid> grid_;
   CellLinkedList cll_;
+  VerletList verlet_;
+  // Verlet-list state: positions at the build (VL_X), steps the list has served
+  std::vector<double> x_build_, y_build_, z_build_;
+  bool list_valid_ = false, neighbours_ready_ = false;
+  std::uint64_t list_age_ = 0;
+  std::size_t lost_at_build_ = 0;
+  double skin_ = 0;
+  // verify_lists: a cell-linked search with cells of 2h, never reordering
+  std::unique_ptr<ParticleGrid> verify_grid_;
+  CellLinkedList verify_cll_;
+  struct NoOp {
+    static constexpr unsigned kFields = fields::position;
+    void interact(const ParticleView&, std::uint32_t, const std::uint32_t*, int) {}
+  };
+  std::vector<NoOp> no_ops_;
+  std::vector<KgcMatrixOp> kgc_ops_;
   std::vector<ForceOp<false>> force_ops_;
   std::vector<ForceOp<true>> force_ops_kgc_;
   PhaseTimes times_;
@@ -93,9 +140,10 @@ template <class Op>
 PairCounts Simulation::for_each_pair(std::vector<Op>& ops) {
   switch (config_.list) {
     case ListKind::cll: return cll_.for_each_pair(*grid_, ps_, ops, phys_.kernel.support2);
-    default: break;
+    case ListKind::vlc:
+    case ListKind::vlx: return verlet_.for_each_pair(ps_, ops, phys_.kernel.support2);
   }
-  throw ConfigError("list kind not implemented");
+  throw ConfigError("unknown list kind");
 }
 
 }  // namespace sphnl

@@ -36,8 +36,18 @@ class Gridder {
 };
 
 struct GridderOptions {
-  int max_parts_in_cell = 0;  // gridder C only
+  int max_parts_in_cell = 0;  // gridder C row length; 0 = default_max_parts_in_cell()
+  // The particle lattice, from which gridder C sizes its default row length
+  // (dx = 0: unknown; C then sizes its rows from the first build).
+  double dx = 0, h = 0;
+  double particles_per_dx3 = 1;  // lattice density: 2 for bcc, 1 for simple cubic
 };
+
+/// MaxPartsInCell when the config leaves it 0: the fullest a cell of side 2.2h
+/// (2h, plus room for a Verlet skin) can be on the lattice when it is cut
+/// worst ((floor(side/dx) + 1)^3 nodes), compressed to the density limit of
+/// 1300/1000. About 3x the mean fill; 0 when options.dx is 0.
+int default_max_parts_in_cell(const GridderOptions& options);
 
 std::unique_ptr<Gridder> make_gridder(GridderKind kind, const GridderOptions& options = {});
 

@@ -14,6 +14,7 @@
 #include "sphnl/grid.hpp"
 #include "sphnl/gridders/gridder.hpp"
 #include "sphnl/neighbours/cell_buffer.hpp"
+#include "sphnl/neighbours/pair_filter.hpp"
 #include "sphnl/orderings/cell_order.hpp"
 #include "sphnl/particles.hpp"
 

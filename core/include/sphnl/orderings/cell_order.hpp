@@ -35,11 +35,13 @@ class CellOrder {
   std::span<const std::uint64_t> key_coords() const { return key_coords_; }
   static constexpr std::uint64_t kNoCellCoords = ~std::uint64_t{0};
   /// Bytes of this ordering's own tables (the padded key space included).
-  std::size_t bytes() const { return key_coords_.capacity() * sizeof(std::uint64_t); }
+  std::size_t bytes() const { return key_coords_.capacity() * sizeof(std::uint64_t) + table_bytes(); }
 
  protected:
   /// Stores what key() needs for this grid; returns the number of keys.
   virtual std::uint32_t prepare(const CellGrid& grid) = 0;
+  /// Bytes of an ordering's own lookup tables (Hilbert's rank table).
+  virtual std::size_t table_bytes() const { return 0; }
 
  private:
   std::uint32_t num_keys_ = 0;

@@ -1,0 +1,64 @@
+# sphnl — every target builds what it needs; `make deps` runs first and installs
+# missing Debian packages (as root) or prints the exact apt-get command.
+#
+#   make test                      build and run every test (what CI runs)
+#   make reproduce [FULL=1]        benchmarks -> results/<run-id>/ -> figures + REPRODUCTION.md
+#   make figures RESULTS=dir       redraw figures and report from stored JSON only
+#   make bench ARGS="..."          run the benchmark binary with ARGS passed through
+#   make compare [BASE=ref] [THRESHOLD=2]   compare performance against another git ref
+#   make run ARGS="..."            run `sphnl run ARGS`
+
+# Debian's interpreter: it can import python3-numpy/pandas/matplotlib/scipy,
+# while the first python3 on PATH may be a pyenv one that cannot.
+PYTHON ?= /usr/bin/python3
+BUILD ?= build
+JOBS ?= $(shell nproc 2>/dev/null || echo 2)
+CMAKE_FLAGS ?=
+SIZE := $(if $(filter 1 yes true,$(FULL)),full,default)
+RUN_ID ?= $(shell date +%Y%m%d-%H%M%S)-$(SIZE)
+RESULTS ?= results/reference
+BASE ?=
+THRESHOLD ?= 2
+COMPARE_OUT ?= .compare/out
+export MPLBACKEND := Agg
+
+.PHONY: all deps configure build test test-cpp test-python reproduce figures bench compare run clean
+
+all: build
+
+deps:
+	@bash tools/deps.sh
+	@$(PYTHON) -c "import numpy, pandas, matplotlib, scipy" 2>/dev/null || { \
+	  echo "sphnl: $(PYTHON) cannot import numpy/pandas/matplotlib/scipy; install python3-numpy python3-pandas python3-matplotlib python3-scipy or set PYTHON=" >&2; exit 1; }
+
+$(BUILD)/CMakeCache.txt: CMakeLists.txt | deps
+	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DPython3_EXECUTABLE=$(PYTHON) $(CMAKE_FLAGS)
+
+configure: deps $(BUILD)/CMakeCache.txt
+
+build: configure
+	cmake --build $(BUILD) -j $(JOBS)
+
+test: build
+	ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS)
+	SPHNL_BUILD_DIR=$(abspath $(BUILD)) $(PYTHON) -m unittest discover -s tests/python -v
+
+reproduce: build
+	$(PYTHON) experiments/run.py --size $(SIZE) --run-id $(RUN_ID) --bench $(BUILD)/benchmarks/sphnl_bench
+	$(PYTHON) plots/report.py results/$(RUN_ID)
+	@echo "sphnl: report: results/$(RUN_ID)/REPRODUCTION.md"
+
+figures: deps
+	$(PYTHON) plots/report.py $(RESULTS)
+
+bench: build
+	$(BUILD)/benchmarks/sphnl_bench $(ARGS)
+
+compare: deps
+	$(PYTHON) tools/compare.py --base "$(BASE)" --threshold "$(THRESHOLD)" --out "$(COMPARE_OUT)"
+
+run: build
+	$(BUILD)/sphnl run $(ARGS)
+
+clean:
+	rm -rf $(BUILD) .compare

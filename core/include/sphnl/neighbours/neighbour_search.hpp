@@ -1,0 +1,123 @@
+#pragma once
+// NeighbourSearch: full neighbour lists (every point j != i with |x_j - x_i| < R,
+// strictly) of an arbitrary point cloud, found with any gridder (§2.3), cell
+// order (§2.4) and reorder choice: the kernel of `sphnl neighbours` and of the
+// `search/...` benchmark family.
+//
+// Cells have side R (slightly more, so that round-off can never put two points
+// closer than R two cells apart), and every point tests the 27 cells around
+// its own. With reorder on, the coordinates are permuted into cell order so the
+// candidates of a point are a few contiguous runs (3-cell runs along x for
+// sort_x); with reorder off, each home cell gathers its 27 cells through the
+// gridder into a small contiguous buffer. Either way one SIMD distance loop
+// tests the candidates and compacts the survivors straight into the CSR output.
+#include <cmath>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "sphnl/config.hpp"
+#include "sphnl/grid.hpp"
+#include "sphnl/gridders/gridder.hpp"
+#include "sphnl/orderings/cell_order.hpp"
+
+namespace sphnl {
+
+/// The squared distance every search path and the brute-force oracle use, with
+/// the same rounding (fused multiply-adds where the target has them), so that
+/// all paths agree on pairs at exactly r = R.
+inline double distance2(double dx, double dy, double dz) {
+#if defined(__FMA__)
+  return std::fma(dz, dz, std::fma(dy, dy, dx * dx));
+#else
+  return dx * dx + dy * dy + dz * dz;
+#endif
+}
+
+struct SearchOptions {
+  GridderKind gridder = GridderKind::B;
+  CellOrderKind order = CellOrderKind::sort_x;
+  bool reorder = true;
+  int max_parts_in_cell = 0;  // gridder C; 0 = twice the fullest cell
+};
+
+/// Full neighbour lists in compressed-row form. Rows come in the order the
+/// search swept the cells; point(r) is the input index whose neighbours row r
+/// holds, and the neighbours are input indices (in no particular order).
+class NeighbourLists {
+ public:
+  std::size_t num_rows() const { return point_.size(); }
+  std::uint64_t num_entries() const { return offsets_.empty() ? 0 : offsets_.back(); }
+  std::uint32_t point(std::size_t r) const { return point_[r]; }
+  std::span<const std::uint32_t> row(std::size_t r) const {
+    return {entries_.get() + offsets_[r], static_cast<std::size_t>(offsets_[r + 1] - offsets_[r])};
+  }
+  /// Neighbour count of every input point, in input order.
+  void counts(std::vector<std::uint32_t>& out) const;
+  std::size_t bytes() const {
+    return capacity_ * sizeof(std::uint32_t) + offsets_.capacity() * sizeof(std::uint64_t) +
+           point_.capacity() * sizeof(std::uint32_t);
+  }
+
+ private:
+  friend class NeighbourSearch;
+  /// Makes room for `more` entries past `used` (plus SIMD store slack), keeping
+  /// the first `used`, once `rows_done` rows are written; never shrinks.
+  std::uint32_t* reserve(std::uint64_t used, std::uint64_t more, std::size_t rows_done);
+  struct FreeEntries {
+    void operator()(std::uint32_t* p) const;
+  };
+
+  std::vector<std::uint32_t> point_;
+  std::vector<std::uint64_t> offsets_;
+  std::unique_ptr<std::uint32_t, FreeEntries> entries_;  // uninitialised: no zero-fill of ~N*70 entries
+  std::uint64_t capacity_ = 0;
+};
+
+/// Seconds of the last run, split as `sphnl neighbours` reports them.
+struct SearchTimes {
+  double build = 0;   // bounds, cells, cell keys, gridder, reordering
+  double search = 0;  // distance tests and writing the lists
+};
+
+class NeighbourSearch {
+ public:
+  explicit NeighbourSearch(const SearchOptions& options = {});
+  ~NeighbourSearch();
+
+  /// Full lists of the points (x[i], y[i], z[i]) within `radius` (strictly)
+  /// into `out` (its storage is reused between calls). Coordinates must be
+  /// finite; radius > 0. Buffers are kept, so repeated calls do not allocate.
+  void run(std::span<const double> x, std::span<const double> y, std::span<const double> z, double radius,
+           NeighbourLists& out);
+
+  const SearchTimes& times() const { return times_; }
+  const CellGrid& grid() const { return grid_; }
+  const Gridder& gridder() const { return *gridder_; }
+  const CellOrder& order() const { return *order_; }
+  /// Bytes of the search structures (gridder, ordering tables, keys,
+  /// reordering buffers, gather buffers), not counting the lists.
+  std::size_t bytes() const;
+
+ private:
+  void build(std::span<const double> x, std::span<const double> y, std::span<const double> z, double radius);
+  void search_sorted(double radius2, NeighbourLists& out);
+  void search_gathered(std::span<const double> x, std::span<const double> y, std::span<const double> z,
+                       double radius2, NeighbourLists& out);
+
+  SearchOptions options_;
+  CellGrid grid_;
+  std::unique_ptr<CellOrder> order_;
+  std::unique_ptr<Gridder> gridder_;
+  std::vector<std::uint32_t> keys_;
+  // reorder on: coordinates, input index and cell start in cell order
+  std::vector<std::uint32_t> permutation_, cell_start_;
+  std::vector<double> xs_, ys_, zs_;
+  // reorder off: the 27 cells of one home cell, gathered
+  std::vector<std::uint32_t> gather_index_;
+  std::vector<double> gx_, gy_, gz_;
+  SearchTimes times_;
+};
+
+}  // namespace sphnl

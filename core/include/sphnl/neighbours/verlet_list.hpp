@@ -1,0 +1,97 @@
+#pragma once
+// Verlet list (VL, paper §2.5): for every particle a, the candidates b with
+// r_ab < 2H = 2h + dh found at a build; the interaction loop of the following
+// steps tests only those candidates against 2h. VL_C and VL_X differ only in
+// when the list is rebuilt (Simulation decides); this class builds and walks it.
+//
+// Storage is compressed sparse rows: count per particle, prefix sum, fill.
+// Each unordered pair is stored once (in the list of the particle whose home
+// cell the half-stencil sweep visits first), as the cell-linked list evaluates
+// each pair once; boundary-boundary pairs are never stored. Indices are global
+// particle indices: particles are reordered only at builds, so they stay valid
+// for the life of the list.
+#include <omp.h>
+
+#include <cstdint>
+#include <vector>
+
+#include "sphnl/neighbours/cell_sweep.hpp"
+#include "sphnl/neighbours/pair_counts.hpp"
+#include "sphnl/neighbours/pair_filter.hpp"
+#include "sphnl/neighbours/particle_grid.hpp"
+#include "sphnl/particle_view.hpp"
+
+namespace sphnl {
+
+class VerletList {
+ public:
+  /// Builds the list from `pg`, gridded with cells of side >= sqrt(list_radius2):
+  /// every pair (not boundary-boundary) with r^2 < list_radius2.
+  void build(const ParticleGrid& pg, ParticleSet& ps, double list_radius2, int threads);
+
+  /// Runs ops[thread].interact on every listed pair with 1e-18 < r^2 < support2,
+  /// on the global particle arrays (once per pair). Threads take contiguous
+  /// ranges of particles with equal shares of the list; threads > 0 accumulate
+  /// privately and are summed in a fixed order (deterministic for a fixed count).
+  template <class Op>
+  PairCounts for_each_pair(ParticleSet& ps, std::vector<Op>& ops, double support2);
+
+  /// Stored pairs (each unordered pair once).
+  std::uint64_t pairs() const { return offsets_.empty() ? 0 : offsets_.back(); }
+  std::uint32_t count(std::uint32_t i) const { return offsets_[i + 1] - offsets_[i]; }
+  const std::uint32_t* candidates(std::uint32_t i) const { return neighbours_.data() + offsets_[i]; }
+  /// Bytes of the list itself: offsets and neighbour indices (capacity).
+  std::size_t list_bytes() const;
+  /// Everything this pair source allocated: the list, build sweep buffers,
+  /// loop scratch and private accumulators of threads > 0.
+  std::size_t bytes() const;
+
+ private:
+  void prepare_loop(ParticleSet& ps, unsigned outputs, int threads);
+  void reduce(ParticleSet& ps, unsigned outputs, int threads);
+
+  std::vector<std::uint32_t> offsets_;     // size N + 1: list of i is neighbours_[offsets_[i], offsets_[i+1])
+  std::vector<std::uint32_t> neighbours_;  // candidate indices
+  std::uint32_t max_count_ = 0;            // longest list, sizes the survivor buffers
+  CellSweep sweep_;
+  struct Scratch {
+    std::vector<std::uint32_t> survivors;
+    std::vector<double> acc[13];  // private accumulators of threads > 0 (order of CellSweep::Scratch::acc)
+    ParticleView view;
+    std::uint32_t begin = 0, end = 0;  // particle range of this thread
+  };
+  std::vector<Scratch> scratch_;
+  std::vector<PairCounts> counts_;
+};
+
+template <class Op>
+PairCounts VerletList::for_each_pair(ParticleSet& ps, std::vector<Op>& ops, double support2) {
+  const int threads = static_cast<int>(ops.size());
+  constexpr unsigned outputs = Op::kFields & (fields::force_out | fields::kgc_m_out);
+  prepare_loop(ps, outputs, threads);
+  counts_.assign(threads, PairCounts{});
+#pragma omp parallel num_threads(threads)
+  {
+    const int t = omp_get_thread_num();
+    Scratch& s = scratch_[t];
+    std::uint32_t* survivors = s.survivors.data();
+    PairCounts c;
+    const std::uint32_t* off = offsets_.data();
+    const std::uint32_t* nb = neighbours_.data();
+    for (std::uint32_t i = s.begin; i < s.end; ++i) {
+      const int n = static_cast<int>(off[i + 1] - off[i]);
+      if (n == 0) continue;
+      const int m = filter_list(s.view, i, nb + off[i], n, support2, survivors);
+      if (m > 0) ops[t].interact(s.view, i, survivors, m);
+      c.candidates += static_cast<std::uint64_t>(n);
+      c.interactions += static_cast<std::uint64_t>(m);
+    }
+    counts_[t] = c;
+  }
+  if (outputs && threads > 1) reduce(ps, outputs, threads);
+  PairCounts sum;
+  for (const auto& c : counts_) sum += c;
+  return sum;
+}
+
+}  // namespace sphnl

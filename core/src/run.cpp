@@ -1,0 +1,339 @@
+#include "sphnl/run.hpp"
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+
+#include "sphnl/output.hpp"
+#include "sphnl/timer.hpp"
+
+namespace sphnl {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+volatile std::sig_atomic_t g_interrupted = 0;
+extern "C" void on_interrupt(int) { g_interrupted = 1; }
+
+std::size_t peak_rss_bytes() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return static_cast<std::size_t>(u.ru_maxrss) * 1024;  // Linux reports KiB
+}
+
+std::string format_duration(double s) {
+  if (!std::isfinite(s) || s < 0) return "?";
+  char buf[32];
+  const long t = std::lround(s);
+  if (t >= 3600) std::snprintf(buf, sizeof buf, "%ldh%02ldm", t / 3600, (t / 60) % 60);
+  else if (t >= 60) std::snprintf(buf, sizeof buf, "%ldm%02lds", t / 60, t % 60);
+  else std::snprintf(buf, sizeof buf, "%.1fs", s);
+  return buf;
+}
+
+/// Progress line on stderr, at most 4 per second: carriage-return updates on a
+/// terminal, plain lines otherwise (logs stay readable).
+class Progress {
+ public:
+  explicit Progress(bool enabled) : enabled_(enabled), tty_(::isatty(::fileno(stderr)) != 0) {}
+
+  void update(const Simulation& sim, double fraction_done, bool force) {
+    if (!enabled_) return;
+    const double now = clock_.lap() + elapsed_;
+    elapsed_ = now;
+    if (!force && now - last_print_ < 0.25) return;
+    last_print_ = now;
+    const double rate = now > 0 ? static_cast<double>(sim.steps_done()) / now : 0;
+    const double eta = fraction_done > 0 ? std::max(0.0, now * (1 - fraction_done) / fraction_done) : -1;
+    const std::size_t active = sim.particles().size() - sim.lost();
+    std::fprintf(stderr, "%sstep %ld  t = %.4f s  dt = %.3e s  particles %zu  %.1f steps/s  ETA %s%s",
+                 tty_ ? "\r" : "", sim.steps_done(), sim.time(), sim.last_dt(), active, rate,
+                 format_duration(eta).c_str(), tty_ ? "\033[K" : "\n");
+    std::fflush(stderr);
+    dirty_ = tty_;
+  }
+  void finish() {
+    if (enabled_ && dirty_) std::fputc('\n', stderr);
+    dirty_ = false;
+  }
+
+ private:
+  bool enabled_, tty_, dirty_ = false;
+  Stopwatch clock_;
+  double elapsed_ = 0, last_print_ = -1;
+};
+
+/// Total mass summed in id order: Simulation::total_mass() sums in memory
+/// order, which reordering changes, so its last bits are not comparable
+/// between steps; this sum is (masses never change).
+double total_mass_in_id_order(const ParticleSet& ps) {
+  double m = 0;
+  for (const std::uint32_t i : id_order(ps)) m += ps.mass[i];
+  return m;
+}
+
+std::string snapshot_stem(long step) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "step_%06ld", step);
+  return buf;
+}
+
+}  // namespace
+
+std::string run_usage() {
+  return "usage: sphnl run [--config FILE.json] [--set key=value]... [--out DIR] [--quiet]\n"
+         "\n"
+         "Runs the dam break with obstacle of Dominguez et al. 2011, section 2.2.\n"
+         "  --config FILE   JSON object of config keys (defaults: DESIGN.md table)\n"
+         "  --set key=value override one key (repeatable; applied after the file)\n"
+         "  --out DIR       output directory (default: sphnl-out); receives summary.json,\n"
+         "                  snapshots/step_NNNNNN.vtu and .csv, snapshots.pvd\n"
+         "  --quiet         no progress line\n"
+         "config keys: " +
+         [] {
+           std::string s;
+           for (const auto& k : config_keys()) s += (s.empty() ? "" : ", ") + k;
+           return s;
+         }() + "\n";
+}
+
+RunOptions parse_run_options(int argc, char** argv) {
+  RunOptions o;
+  for (int i = 1; i < argc; ++i) {
+    std::string arg = argv[i], value;
+    bool has_value = false;
+    if (arg.rfind("--", 0) == 0) {
+      const auto eq = arg.find('=');
+      if (eq != std::string::npos && arg != "--set") {
+        value = arg.substr(eq + 1);
+        arg = arg.substr(0, eq);
+        has_value = true;
+      }
+    }
+    auto take_value = [&]() -> std::string {
+      if (has_value) return value;
+      if (i + 1 >= argc) throw ConfigError("option " + arg + " needs a value");
+      return argv[++i];
+    };
+    if (arg == "--config") o.config_file = take_value();
+    else if (arg == "--set") o.overrides.push_back(take_value());
+    else if (arg == "--out") o.out_dir = take_value();
+    else if (arg == "--quiet" && !has_value) o.quiet = true;
+    else throw ConfigError("unknown option '" + std::string(argv[i]) + "' of sphnl run; allowed: --config FILE, --set key=value, --out DIR, --quiet, --help");
+  }
+  if (o.out_dir.empty()) throw ConfigError("--out needs a directory name");
+  return o;
+}
+
+RunConfig load_run_config(const RunOptions& options) {
+  json j = json::object();
+  if (!options.config_file.empty()) {
+    std::ifstream in(options.config_file);
+    if (!in) throw ConfigError("cannot read config file '" + options.config_file + "': " + std::strerror(errno));
+    j = json::parse(in, nullptr, /*allow_exceptions=*/false, /*ignore_comments=*/true);
+    if (j.is_discarded())
+      throw ConfigError("config file '" + options.config_file + "' is not valid JSON; expected an object such as {\"particles\": 31239, \"gridder\": \"B\"}");
+    if (!j.is_object())
+      throw ConfigError("config file '" + options.config_file + "' must hold a JSON object of key: value pairs");
+  }
+  for (const auto& kv : options.overrides) apply_override(j, kv);
+  return config_from_json(j);
+}
+
+json run_summary(const Simulation& sim, double initial_mass, double wall_total_s) {
+  const Case& cs = sim.case_info();
+  const PhaseTimes& t = sim.phase_times();
+  const NeighbourStats& st = sim.neighbour_stats();
+  const std::size_t n = sim.particles().size();
+  const double steps = static_cast<double>(std::max<long>(sim.steps_done(), 1));
+  const double particle_steps = steps * static_cast<double>(std::max<std::size_t>(n, 1));
+  const auto p = sim.momentum();
+  json s;
+  s["config"] = config_to_json(sim.config());
+  s["n_fluid"] = cs.n_fluid;
+  s["n_boundary"] = cs.n_boundary;
+  s["n_total"] = n;
+  s["dx"] = cs.dx;
+  s["h"] = sim.physics().h();
+  s["c0"] = sim.physics().c0;
+  s["steps"] = sim.steps_done();
+  s["simulated_time"] = sim.time();
+  s["last_dt"] = sim.last_dt();
+  // Phases of the paper's Table I, wall seconds summed over all steps.
+  s["wall_time_s"] = {{"neighbour_list", t.neighbour_list}, {"force", t.force}, {"update", t.update},
+                      {"total", t.total()}, {"run", wall_total_s}};
+  s["seconds_per_step"] = t.total() / steps;
+  s["particles_lost"] = sim.lost();
+  s["total_mass"] = {{"initial", initial_mass}, {"final", total_mass_in_id_order(sim.particles())}};
+  s["momentum"] = {p[0], p[1], p[2]};
+  s["max_speed"] = sim.max_speed();
+  s["neighbour_bytes"] = sim.neighbour_bytes();
+  s["peak_rss_bytes"] = peak_rss_bytes();
+  // Pairs are counted once per particle of the pair (docs/CONTRACTS.md).
+  s["neighbour_stats"] = {{"builds", st.builds},
+                          {"candidates", st.candidates},
+                          {"interactions", st.interactions},
+                          {"candidates_per_particle", 2.0 * static_cast<double>(st.candidates) / particle_steps},
+                          {"interactions_per_particle", 2.0 * static_cast<double>(st.interactions) / particle_steps},
+                          {"max_steps_per_list", st.max_steps_per_list},
+                          {"mean_steps_per_list", st.mean_steps_per_list()},
+                          {"interacting_fraction_of_candidates",
+                           st.candidates ? static_cast<double>(st.interactions) / static_cast<double>(st.candidates) : 0.0},
+                          // Verlet lists (paper §2.5); zero for the cell-linked list
+                          {"forced_rebuilds", st.forced_rebuilds},
+                          {"list_pairs", st.list_pairs},
+                          {"list_bytes", st.list_bytes},
+                          {"max_list_bytes", st.max_list_bytes},
+                          {"skin_m", st.skin},
+                          {"vl_misses", st.vl_misses},
+                          {"verified_steps", st.verified_steps},
+                          {"kgc_fallbacks", st.kgc_fallbacks}};
+  s["git_revision"] = SPHNL_GIT_REVISION;
+  s["build_type"] = SPHNL_BUILD_TYPE;
+  return s;
+}
+
+int run_main(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i)
+    if (std::strcmp(argv[i], "--help") == 0 || std::strcmp(argv[i], "-h") == 0) {
+      std::cout << run_usage();
+      return 0;
+    }
+  // --- everything the user gave is checked before any work ---
+  RunOptions options;
+  RunConfig config;
+  try {
+    options = parse_run_options(argc, argv);
+    config = load_run_config(options);
+  } catch (const ConfigError& e) {
+    std::cerr << "sphnl run: " << e.what() << "\n\n" << run_usage();
+    return 2;
+  } catch (const nlohmann::json::exception& e) {
+    std::cerr << "sphnl run: " << e.what() << "\n";
+    return 2;
+  }
+  const fs::path out_dir(options.out_dir), snap_dir = out_dir / "snapshots";
+  try {
+    ensure_writable_directory(out_dir);
+    ensure_writable_directory(snap_dir);
+  } catch (const std::exception& e) {
+    std::cerr << "sphnl run: " << e.what() << "\n";
+    return 2;
+  }
+
+  Stopwatch wall;
+  std::unique_ptr<Simulation> sim_ptr;
+  try {
+    sim_ptr = std::make_unique<Simulation>(config);
+  } catch (const ConfigError& e) {
+    std::cerr << "sphnl run: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "sphnl run: cannot set up the case: " << e.what() << "\n";
+    return 2;
+  }
+  Simulation& sim = *sim_ptr;
+  const bool quiet = options.quiet || !config.progress;
+  if (!quiet)
+    std::fprintf(stderr, "sphnl run: %zu particles (%zu fluid, %zu boundary), dx = %.5g m, h = %.5g m, %s -> %s\n",
+                 sim.particles().size(), sim.case_info().n_fluid, sim.case_info().n_boundary, sim.case_info().dx,
+                 sim.physics().h(),
+                 config.steps > 0 ? (std::to_string(config.steps) + " steps").c_str()
+                                  : (std::to_string(config.end_time) + " s").c_str(),
+                 out_dir.string().c_str());
+
+  const double initial_mass = total_mass_in_id_order(sim.particles());
+  std::vector<SnapshotEntry> snapshots;
+  double output_seconds = 0;
+  auto snapshot = [&] {
+    Stopwatch sw;
+    const std::string stem = snapshot_stem(sim.steps_done());
+    SnapshotEntry e{sim.steps_done(), sim.time(), "snapshots/" + stem + ".vtu", "snapshots/" + stem + ".csv"};
+    write_vtu(out_dir / e.vtu, sim.particles(), sim.time());
+    write_csv(out_dir / e.csv, sim.particles());
+    snapshots.push_back(e);
+    write_pvd(out_dir / "snapshots.pvd", snapshots);
+    output_seconds += sw.lap();
+  };
+  auto summary = [&](const std::string& status) {
+    json s = run_summary(sim, initial_mass, wall.lap());  // setup, steps and output
+    s["status"] = status;
+    s["wall_time_s"]["output"] = output_seconds;
+    json snaps = json::array();
+    for (const auto& e : snapshots) snaps.push_back({{"step", e.step}, {"time", e.time}, {"vtu", e.vtu}, {"csv", e.csv}});
+    s["snapshots"] = snaps;
+    write_json(out_dir / "summary.json", s);
+  };
+
+  g_interrupted = 0;
+  auto old_int = std::signal(SIGINT, on_interrupt);
+  auto old_term = std::signal(SIGTERM, on_interrupt);
+  struct RestoreSignals {
+    decltype(old_int) i, t;
+    ~RestoreSignals() { std::signal(SIGINT, i); std::signal(SIGTERM, t); }
+  } restore{old_int, old_term};
+
+  Progress progress(!quiet);
+  const bool by_steps = config.steps > 0;
+  auto done = [&] { return by_steps ? sim.steps_done() >= config.steps : sim.time() >= config.end_time; };
+  auto fraction = [&] {
+    return by_steps ? static_cast<double>(sim.steps_done()) / static_cast<double>(config.steps)
+                    : sim.time() / config.end_time;
+  };
+  std::string status = "completed";
+  int exit_code = 0;
+  try {
+    double next_output = config.output_interval;
+    if (config.output_interval > 0) snapshot();  // t = 0
+    while (!done()) {
+      if (g_interrupted) { status = "interrupted"; exit_code = 130; break; }
+      sim.step();
+      progress.update(sim, fraction(), false);
+      if (config.output_interval > 0 && sim.time() >= next_output && !done()) {
+        snapshot();
+        // Skip intervals a single long step jumped over rather than writing duplicates.
+        while (next_output <= sim.time()) next_output += config.output_interval;
+      }
+    }
+    progress.update(sim, fraction(), true);
+    progress.finish();
+    if (snapshots.empty() || snapshots.back().step != sim.steps_done()) snapshot();  // the final state, always
+  } catch (const std::exception& e) {
+    progress.finish();
+    std::cerr << "sphnl run: " << e.what() << "\n";
+    status = std::string("failed: ") + e.what();
+    exit_code = 1;
+    try {
+      if (snapshots.empty() || snapshots.back().step != sim.steps_done()) snapshot();
+    } catch (const std::exception& e2) {
+      std::cerr << "sphnl run: " << e2.what() << "\n";
+    }
+  }
+  try {
+    summary(status);
+  } catch (const std::exception& e) {
+    std::cerr << "sphnl run: " << e.what() << "\n";
+    return 1;
+  }
+  if (!quiet)
+    std::fprintf(stderr, "sphnl run: %s: %ld steps, t = %.4f s, %.3f s per step, %zu lost; wrote %s\n",
+                 status.c_str(), sim.steps_done(), sim.time(),
+                 sim.phase_times().total() / static_cast<double>(std::max<long>(sim.steps_done(), 1)), sim.lost(),
+                 (out_dir / "summary.json").string().c_str());
+  return exit_code;
+}
+
+}  // namespace sphnl

@@ -1,0 +1,299 @@
+"""Tests of tools/compare.py (`make compare`): the comparison logic on
+synthetic figures, and the worktree/build/run flow end to end on a throwaway
+git repository whose "sphnl_bench" and "valgrind" are small Python scripts.
+Nothing here builds sphnl or runs valgrind; the whole file runs in seconds."""
+import contextlib
+import importlib.util
+import io
+import json
+import os
+import pathlib
+import shutil
+import subprocess
+import tempfile
+import unittest
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+_spec = importlib.util.spec_from_file_location("sphnl_compare", REPO / "tools" / "compare.py")
+C = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(C)
+
+NAME_B = "step/n:6000/gridder:B/order:sort_x/reorder:1/list:cll/ns:7/kgc:0/threads:1"
+NAME_D = "step/n:6000/gridder:D/order:sort_x/reorder:1/list:cll/ns:7/kgc:0/threads:1"
+TIMES = {NAME_B: ([2.0e-3, 2.1e-3, 1.9e-3, 2.05e-3, 1.95e-3],
+                  [2.0e-3, 2.2e-3, 1.9e-3, 2.0e-3, 2.1e-3]),
+         NAME_D: ([1.5e-3] * 5, [1.5e-3] * 5)}
+
+
+def irs(factor_b=1.0, factor_d=1.0):
+    """Callgrind totals of an 8-step window, the new side scaled by factor."""
+    return {NAME_B: ((80_000_000, 8), (int(80_000_000 * factor_b), 8)),
+            NAME_D: ((64_000_000, 8), (int(64_000_000 * factor_d), 8))}
+
+
+def gb_entry(name, s_per_step, steps=8, **extra):
+    return {"name": name, "run_name": name, "run_type": "iteration", "repetitions": 1,
+            "repetition_index": 0, "threads": 1, "iterations": 1,
+            "real_time": s_per_step * steps * 1e3, "cpu_time": s_per_step * steps * 1e3,
+            "time_unit": "ms", "window_steps": steps, "s_per_step": s_per_step, **extra}
+
+
+class ParseTest(unittest.TestCase):
+    def test_gb_json_iterations_only(self):
+        doc = {"context": {}, "benchmarks": [
+            gb_entry(NAME_B, 2e-3),
+            {**gb_entry(NAME_B, 9.0), "name": NAME_B + "_mean", "run_type": "aggregate",
+             "aggregate_name": "mean"}]}
+        figs = C.parse_gb_json(doc)
+        self.assertEqual(list(figs), [NAME_B])
+        self.assertEqual(figs[NAME_B]["window_steps"], 8)
+        self.assertAlmostEqual(figs[NAME_B]["s_per_step"], 2e-3)
+        self.assertAlmostEqual(figs[NAME_B]["real_time_s"], 16e-3)
+
+    def test_gb_json_errors_are_reported(self):
+        bad = {"benchmarks": [{**gb_entry(NAME_B, 1e-3), "error_occurred": True,
+                               "error_message": "cell overflow"}]}
+        with self.assertRaisesRegex(C.CompareError, "cell overflow"):
+            C.parse_gb_json(bad)
+        no_counter = {"benchmarks": [{"name": NAME_B, "real_time": 1, "time_unit": "ns"}]}
+        with self.assertRaisesRegex(C.CompareError, "s_per_step"):
+            C.parse_gb_json(no_counter)
+        with self.assertRaisesRegex(C.CompareError, "not Google Benchmark JSON"):
+            C.parse_gb_json({"foo": 1})
+
+    def test_callgrind_totals_and_summary(self):
+        text = "version: 1\ncreator: callgrind-3.19.0\nevents: Ir\nfn=(1) main\n3 7\nsummary: 123456\ntotals: 123457\n"
+        self.assertEqual(C.parse_callgrind_ir(text), 123457)
+        self.assertEqual(C.parse_callgrind_ir("events: Ir\nsummary: 99\n"), 99)
+        self.assertEqual(C.parse_callgrind_ir("events: Dr Ir Dw\ntotals: 5 42 7\n"), 42)
+        with self.assertRaisesRegex(C.CompareError, "no 'totals:'"):
+            C.parse_callgrind_ir("events: Ir\nfn=main\n")
+        with self.assertRaisesRegex(C.CompareError, "no Ir event"):
+            C.parse_callgrind_ir("events: Dr\ntotals: 5\n")
+
+    def test_filter_matches_exactly_one_name(self):
+        import re
+        flt = C.gb_filter(NAME_B + "/hcoef:1.2")
+        self.assertRegex(NAME_B + "/hcoef:1.2", flt)
+        self.assertIsNone(re.search(flt, NAME_B + "/hcoef:1x2"))
+        self.assertIsNone(re.search(flt, NAME_B + "/hcoef:1.25"))
+
+
+class GateTest(unittest.TestCase):
+    def test_identical_builds_pass(self):
+        report = C.compare(TIMES, irs(), threshold_pct=2.0)
+        self.assertEqual(report["verdict"], "pass")
+        self.assertEqual(C.exit_code(report), 0)
+        row = {r["name"]: r for r in report["benchmarks"]}[NAME_D]
+        self.assertEqual(row["ir"]["change"], 0.0)
+        self.assertEqual(row["ir"]["base_per_step"], 8_000_000)
+        self.assertEqual(row["time"]["p_value"], 1.0)
+
+    def test_five_percent_ir_regression_is_caught(self):
+        report = C.compare(TIMES, irs(factor_b=1.05), threshold_pct=2.0)
+        self.assertEqual(report["regressions"], [NAME_B])
+        self.assertEqual(C.exit_code(report), 1)
+        self.assertAlmostEqual(report["benchmarks"][0]["ir"]["change"], 0.05, places=6)
+
+    def test_improvement_passes(self):
+        report = C.compare(TIMES, irs(factor_b=0.90, factor_d=0.95), threshold_pct=2.0)
+        self.assertEqual(C.exit_code(report), 0)
+
+    def test_threshold_is_strict_and_settable(self):
+        self.assertEqual(C.exit_code(C.compare(TIMES, irs(factor_d=1.02), 2.0)), 0)
+        self.assertEqual(C.exit_code(C.compare(TIMES, irs(factor_d=1.021), 2.0)), 1)
+        self.assertEqual(C.exit_code(C.compare(TIMES, irs(factor_d=1.05), 10.0)), 0)
+        self.assertEqual(C.exit_code(C.compare(TIMES, irs(factor_d=1.001), 0.0)), 1)
+
+    def test_wall_time_is_never_gated(self):
+        slower = {NAME_B: ([1e-3] * 5, [3e-3, 3.1e-3, 2.9e-3, 3e-3, 3.2e-3])}
+        report = C.compare(slower, {}, threshold_pct=2.0)
+        row = report["benchmarks"][0]
+        self.assertAlmostEqual(row["time"]["change"], 2.0)
+        self.assertLess(row["time"]["p_value"], 0.05)
+        self.assertEqual(C.exit_code(report), 0)
+
+    def test_p_value_needs_two_samples(self):
+        self.assertIsNone(C.mann_whitney_p([1.0], [2.0]))
+        self.assertGreater(C.mann_whitney_p([1, 2, 3, 4, 5], [1.5, 2.5, 3.5, 4.5, 5.5]), 0.3)
+
+
+class OutputTest(unittest.TestCase):
+    def report(self):
+        rep = C.compare(TIMES, irs(factor_b=1.05), 2.0,
+                        reproduce={NAME_B: ["valgrind --tool=callgrind base ...",
+                                            "valgrind --tool=callgrind new ..."]})
+        rep.update(base={"ref": "origin/main", "sha": "a" * 40, "dirty": False},
+                   new={"ref": "working tree", "sha": "b" * 40, "dirty": True}, reps=5)
+        return rep
+
+    def test_markdown_has_a_row_per_benchmark(self):
+        md = C.format_markdown(self.report())
+        self.assertIn("regression", md.splitlines()[0])
+        rows = [line for line in md.splitlines() if line.startswith("| `step/")]
+        self.assertEqual(len(rows), 2)
+        self.assertIn("+5.00 %", rows[0])
+        self.assertIn("**REGRESSION**", rows[0])
+        self.assertIn("ok", rows[1])
+        self.assertIn("valgrind --tool=callgrind new ...", md)
+        self.assertIn("origin/main (aaaaaaaaaaaa)", md)
+
+    def test_text_names_benchmark_change_and_reproduce_command(self):
+        text = C.format_text(self.report())
+        self.assertIn(f"REGRESSION: {NAME_B}: instructions per step +5.00 %", text)
+        self.assertIn("valgrind --tool=callgrind base ...", text)
+        self.assertIn("1 gated regression(s): exit 1", text)
+
+    def test_json_and_markdown_written(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            js, md = C.write_outputs(self.report(), pathlib.Path(tmp) / "out")
+            doc = json.loads(js.read_text())
+            self.assertEqual(doc["verdict"], "regression")
+            self.assertEqual([r["name"] for r in doc["benchmarks"]], [NAME_B, NAME_D])
+            self.assertEqual(doc["benchmarks"][0]["ir"]["new_per_step"], 10_500_000)
+            self.assertTrue(md.read_text().startswith("### Performance comparison"))
+            self.assertEqual(sorted(p.name for p in js.parent.iterdir()),
+                             ["compare.json", "compare.md"])  # no temporaries left
+
+
+# ------------------------------------------------------------ end to end
+FAKE_BENCH = '''#!/usr/bin/python3
+# Fake sphnl_bench: the flags of docs/CONTRACTS.md section 2, one benchmark per n.
+import json, os, re, sys
+IR_PER_STEP = {ir}
+args = dict(a[2:].split("=", 1) for a in sys.argv[1:] if "=" in a)
+exp = json.load(open(args["experiment"]))
+size, steps = args["size"], exp["window_steps"][args["size"]]
+names = ["step/n:%d/gridder:B" % n for n in exp["sweep"][size]["n"]]
+names = [n for n in names if re.search(args.get("benchmark_filter", ""), n)]
+os.makedirs(args["cache-dir"], exist_ok=True)
+entries = [dict(name=n, run_name=n, run_type="iteration", iterations=1, real_time=1.0,
+                time_unit="ms", window_steps=steps, s_per_step=1e-3 / steps) for n in names]
+json.dump(dict(context={{}}, benchmarks=entries), open(args["benchmark_out"], "w"))
+if os.environ.get("FAKE_CG_OUT"):
+    total = IR_PER_STEP * steps * len(names)
+    open(os.environ["FAKE_CG_OUT"], "w").write("events: Ir\\nsummary: %d\\ntotals: %d\\n" % (total, total))
+'''
+FAKE_VALGRIND = '''#!/usr/bin/python3
+# Fake valgrind: runs the program, which writes the callgrind file itself.
+import os, sys
+args = sys.argv[1:]
+k = next(i for i, a in enumerate(args) if not a.startswith("--"))
+opts = dict(a[2:].split("=", 1) for a in args[:k])
+assert opts["tool"] == "callgrind" and opts["toggle-collect"] == "sphnl::bench::timed_window*"
+os.environ["FAKE_CG_OUT"] = opts["callgrind-out-file"]
+os.execv(args[k], args[k:])
+'''
+FAKE_CMAKELISTS = '''cmake_minimum_required(VERSION 3.20)
+project(fake NONE)
+file(MAKE_DIRECTORY ${CMAKE_BINARY_DIR}/benchmarks)
+add_custom_target(sphnl_bench ALL
+  COMMAND ${CMAKE_COMMAND} -E copy ${CMAKE_SOURCE_DIR}/benchmarks/bench.py
+          ${CMAKE_BINARY_DIR}/benchmarks/sphnl_bench)
+'''
+EXPERIMENT = {"id": "compare", "benchmark": "step",
+              "sweep": {"default": {"n": [100, 200]}}, "window_steps": {"default": 4}}
+
+
+@unittest.skipUnless(shutil.which("git") and shutil.which("cmake"), "needs git and cmake")
+class EndToEndTest(unittest.TestCase):
+    """A throwaway repository: commit 1 is the base; the working tree is edited."""
+
+    def setUp(self):
+        self._tmp = tempfile.TemporaryDirectory()
+        self.root = pathlib.Path(self._tmp.name)
+        self.repo = self.root / "repo"
+        (self.repo / "benchmarks").mkdir(parents=True)
+        (self.repo / "CMakeLists.txt").write_text(FAKE_CMAKELISTS)
+        (self.repo / "benchmarks" / "bench_main.cpp").write_text("// the real bench lives here\n")
+        self.write_bench(1000)
+        (self.repo / "experiments").mkdir()
+        (self.repo / "experiments" / "compare.json").write_text(json.dumps(EXPERIMENT))
+        self.valgrind = self.root / "valgrind"
+        self.valgrind.write_text(FAKE_VALGRIND)
+        self.valgrind.chmod(0o755)
+        self.git("init", "-q", "-b", "main")
+        self.git("add", ".")
+        self.commit("base")
+
+    def tearDown(self):
+        # Worktrees live under repo/.compare and go with the temporary folder.
+        self._tmp.cleanup()
+
+    def git(self, *args):
+        env = dict(os.environ, GIT_AUTHOR_NAME="t", GIT_AUTHOR_EMAIL="t@t",
+                   GIT_COMMITTER_NAME="t", GIT_COMMITTER_EMAIL="t@t")
+        return subprocess.run(["git", "-C", str(self.repo), *args], check=True, env=env,
+                              capture_output=True, text=True).stdout.strip()
+
+    def commit(self, message):
+        self.git("commit", "-q", "-a", "-m", message)
+        return self.git("rev-parse", "HEAD")
+
+    def write_bench(self, ir_per_step):
+        path = self.repo / "benchmarks" / "bench.py"
+        path.write_text(FAKE_BENCH.format(ir=ir_per_step))
+        path.chmod(0o755)
+
+    def compare(self, *extra):
+        out, err = io.StringIO(), io.StringIO()
+        argv = ["--repo", str(self.repo), "--valgrind", str(self.valgrind), "--reps", "2",
+                "--out", str(self.root / "out"), *extra]
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = C.main(argv)
+        return code, out.getvalue(), err.getvalue()
+
+    def test_identical_then_regressed_working_tree(self):
+        code, out, err = self.compare("--base", "HEAD")
+        self.assertEqual(code, 0, err)
+        self.assertIn("pass", out)
+        report = json.loads((self.root / "out" / "compare.json").read_text())
+        self.assertEqual(len(report["benchmarks"]), 2)
+        self.assertEqual(report["benchmarks"][0]["ir"]["base_per_step"], 1000)
+        self.assertFalse(report["new"]["dirty"])
+
+        self.write_bench(1050)  # uncommitted edit: the new side sees it
+        code, out, err = self.compare()  # default base: merge base with main
+        self.assertEqual(code, 1, err)
+        self.assertIn("REGRESSION: step/n:100/gridder:B: instructions per step +5.00 %", out)
+        self.assertIn("--toggle-collect=sphnl::bench::timed_window*", out)
+        report = json.loads((self.root / "out" / "compare.json").read_text())
+        self.assertTrue(report["new"]["dirty"])
+        self.assertEqual(report["base"]["sha"], self.git("rev-parse", "HEAD"))
+        # the user's tree is untouched and the base worktree is registered once
+        self.assertIn("1050", (self.repo / "benchmarks" / "bench.py").read_text())
+        self.assertEqual(self.git("worktree", "list").count("worktree-"), 1)
+
+    def test_unknown_ref(self):
+        code, _, err = self.compare("--base", "no-such-branch")
+        self.assertEqual(code, 2)
+        self.assertIn("unknown git ref 'no-such-branch'", err)
+
+    def test_base_that_does_not_build(self):
+        base = self.git("rev-parse", "HEAD")
+        (self.repo / "CMakeLists.txt").write_text("this is ( not cmake\n")
+        broken = self.commit("broken")
+        (self.repo / "CMakeLists.txt").write_text(FAKE_CMAKELISTS)
+        code, _, err = self.compare("--base", "HEAD")
+        self.assertEqual(code, 2)
+        self.assertIn(f"base HEAD ({broken[:12]}) does not build", err)
+        self.assertIn("Parse error", err)  # the tail of the build log
+        self.assertNotEqual(base, broken)
+
+    def test_base_predating_the_benchmark_interface(self):
+        self.git("rm", "-q", "benchmarks/bench_main.cpp")
+        self.commit("no benchmarks")
+        (self.repo / "benchmarks" / "bench_main.cpp").write_text("//\n")
+        code, _, err = self.compare("--base", "HEAD")
+        self.assertEqual(code, 2)
+        self.assertIn("predates the benchmark interface", err)
+
+    def test_no_main_branch_for_the_default_base(self):
+        self.git("branch", "-m", "main", "topic")
+        code, _, err = self.compare()
+        self.assertEqual(code, 2)
+        self.assertIn("no 'main' or 'origin/main' branch", err)
+
+
+if __name__ == "__main__":
+    unittest.main()
