@@ -15,10 +15,12 @@ BUILD ?= build
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?=
 SIZE := $(if $(filter 1 yes true,$(FULL)),full,default)
-RUN_ID ?= $(shell date +%Y%m%d-%H%M%S)-$(SIZE)
+# One folder per size and revision: re-running resumes, a new commit starts afresh.
+RUN_ID ?= $(SIZE)-$(shell git rev-parse --short=12 HEAD 2>/dev/null || echo norev)
 RESULTS ?= results/reference
 BASE ?=
 THRESHOLD ?= 2
+REPS ?= 5
 COMPARE_OUT ?= .compare/out
 export MPLBACKEND := Agg
 
@@ -55,7 +57,7 @@ bench: build
 	$(BUILD)/benchmarks/sphnl_bench $(ARGS)
 
 compare: deps
-	$(PYTHON) tools/compare.py --base "$(BASE)" --threshold "$(THRESHOLD)" --out "$(COMPARE_OUT)"
+	$(PYTHON) tools/compare.py --base "$(BASE)" --threshold "$(THRESHOLD)" --reps "$(REPS)" --out "$(COMPARE_OUT)"
 
 run: build
 	$(BUILD)/sphnl run $(ARGS)

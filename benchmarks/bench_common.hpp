@@ -38,6 +38,7 @@ void timed_window(Simulation& sim, int steps);
 
 void register_step_benchmarks(const nlohmann::json& sweep, int window, const Options& opt);
 void register_cellindex_benchmarks(const nlohmann::json& sweep, const Options& opt);
+void register_search_benchmarks(const nlohmann::json& sweep);
 
 double peak_rss_bytes();
 

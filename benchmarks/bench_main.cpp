@@ -74,8 +74,10 @@ int main(int argc, char** argv) {
       sb::register_step_benchmarks(sweep, window, opt);
     } else if (family == "cellindex") {
       sb::register_cellindex_benchmarks(sweep, opt);
+    } else if (family == "search") {
+      sb::register_search_benchmarks(sweep);
     } else {
-      return fail("unknown benchmark family '" + family + "' in " + opt.experiment_path + " (known: step, cellindex)");
+      return fail("unknown benchmark family '" + family + "' in " + opt.experiment_path + " (known: step, cellindex, search)");
     }
   } catch (const std::exception& e) {
     return fail("experiment '" + opt.experiment_path + "': " + e.what());

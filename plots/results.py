@@ -2,7 +2,9 @@
 benchmark names and the Google Benchmark JSON written by sphnl_bench.
 
 Shared by experiments/run.py (which runs the sweeps and checks they are
-complete), the plotting scripts and tests/python/fake_bench.py.
+complete), the plotting scripts and tests/python/fake_bench.py. pandas is
+imported only where the DataFrame is built (load_run), so that run.py and
+the fake bench start quickly.
 """
 import itertools
 import json
@@ -10,8 +12,6 @@ import os
 import pathlib
 import re
 import tempfile
-
-import pandas as pd
 
 SIZES = ("tiny", "default", "full")
 # Name segments of each benchmark family, in the order of CONTRACTS.md §2.
@@ -125,12 +125,20 @@ def validate_experiment(exp, path):
     return exp
 
 
+def experiment_order(exp_id):
+    """Sort key: Table I, the figures in paper order, other studies, beyond_* last."""
+    group = 0 if exp_id.startswith("table") else 1 if exp_id.startswith("fig") else \
+        3 if exp_id.startswith("beyond") else 2
+    return group, exp_id
+
+
 def load_experiments(exp_dir):
-    """{id: definition} of every experiments/*.json, validated."""
+    """{id: definition} of every experiments/*.json, validated, in report order."""
     out = {}
-    for path in sorted(pathlib.Path(exp_dir).glob("*.json")):
+    paths = sorted(pathlib.Path(exp_dir).glob("*.json"), key=lambda p: experiment_order(p.stem))
+    for path in paths:
         try:
-            exp = json.loads(path.read_text())
+            exp = json.loads(path.read_text(encoding="utf-8"))
         except json.JSONDecodeError as e:
             raise ResultsError(f"{path}: not valid JSON ({e})") from None
         out[exp.get("id", path.stem)] = validate_experiment(exp, path)
@@ -144,7 +152,7 @@ def load_experiments(exp_dir):
 def read_benchmark_json(path):
     """The parsed Google Benchmark JSON of one experiment; clear error otherwise."""
     try:
-        doc = json.loads(pathlib.Path(path).read_text())
+        doc = json.loads(pathlib.Path(path).read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
         raise ResultsError(f"{path}: cannot read benchmark JSON ({e})") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("benchmarks"), list):
@@ -196,6 +204,7 @@ def entry_rows(doc, experiment):
 def load_run(run_dir):
     """Every <experiment>.json of a run folder as one DataFrame, one row per
     benchmark iteration entry (machine.json and hidden temp files ignored)."""
+    import pandas as pd
     run_dir = pathlib.Path(run_dir)
     if not run_dir.is_dir():
         raise ResultsError(f"{run_dir}: no such results folder")
@@ -232,9 +241,12 @@ def medians(df):
     ok = df[~df["error_occurred"]]
     keys = param_columns(ok)
     numeric = [c for c in ok.columns if c not in keys and c not in _NON_PARAM
-               and c != "repetition_index" and pd.api.types.is_numeric_dtype(ok[c])]
+               and c != "repetition_index" and ok[c].dtype.kind in "iuf"]
     grouped = ok.groupby(keys, dropna=False, sort=True)
     med = grouped[numeric].median().reset_index()
+    for col in keys:  # integer axes read as float where other families lack them
+        if med[col].dtype == float and med[col].notna().all() and (med[col] % 1 == 0).all():
+            med[col] = med[col].astype(int)
     med["reps"] = grouped.size().values
     if "s_per_step" in med:
         med["t"] = med["s_per_step"]
@@ -246,6 +258,26 @@ def medians(df):
         med["N"] = med["n_particles"] if "n_particles" in med else med["n"]
         med["N"] = med["N"].fillna(med["n"]).astype(float)
     return med
+
+
+def pick(med, **equal):
+    """Rows of `med` whose columns equal the given values (absent columns ignored)."""
+    for key, value in equal.items():
+        if key in med:
+            med = med[med[key] == value]
+    return med
+
+
+def improvement(med, ref, var, on=("n",), x="N"):
+    """The paper's improvement, 100 * (t_ref - t) / t_ref, of configurations
+    `var` over `ref` (dicts of column values), matched on the columns `on`.
+    Returns a DataFrame with columns `x`, `imp`, `t`, `t_ref`, sorted by `x`."""
+    on = list(on)
+    a = pick(med, **ref)[on + ["t"]]
+    b = pick(med, **var)[list(dict.fromkeys(on + [x, "t"]))]
+    m = b.merge(a, on=on, suffixes=("", "_ref"))
+    m["imp"] = 100.0 * (m["t_ref"] - m["t"]) / m["t_ref"]
+    return m.sort_values(x).reset_index(drop=True)
 
 
 def errors(df):
@@ -264,6 +296,9 @@ def write_atomic(path, data):
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data.encode() if isinstance(data, str) else data)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
     except BaseException:
         os.unlink(tmp)

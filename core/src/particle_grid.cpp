@@ -23,7 +23,9 @@ bool ParticleGrid::build(ParticleSet& ps, double cell_size, bool reorder) {
   keys_scratch_.resize(keys_.size());
   for (std::size_t k = 0; k < keys_.size(); ++k) keys_scratch_[k] = keys_[permutation_[k]];
   keys_.swap(keys_scratch_);
-  gridder_->build(keys_, order_->num_keys());
+  // keys_scratch_ is free again: use it for the inverse permutation.
+  for (std::size_t k = 0; k < permutation_.size(); ++k) keys_scratch_[permutation_[k]] = static_cast<std::uint32_t>(k);
+  gridder_->renumber(keys_scratch_);
   return true;
 }
 

@@ -147,11 +147,11 @@ class OutputTest(unittest.TestCase):
     def test_json_and_markdown_written(self):
         with tempfile.TemporaryDirectory() as tmp:
             js, md = C.write_outputs(self.report(), pathlib.Path(tmp) / "out")
-            doc = json.loads(js.read_text())
+            doc = json.loads(js.read_text(encoding="utf-8"))
             self.assertEqual(doc["verdict"], "regression")
             self.assertEqual([r["name"] for r in doc["benchmarks"]], [NAME_B, NAME_D])
             self.assertEqual(doc["benchmarks"][0]["ir"]["new_per_step"], 10_500_000)
-            self.assertTrue(md.read_text().startswith("### Performance comparison"))
+            self.assertTrue(md.read_text(encoding="utf-8").startswith("### Performance comparison"))
             self.assertEqual(sorted(p.name for p in js.parent.iterdir()),
                              ["compare.json", "compare.md"])  # no temporaries left
 
@@ -204,13 +204,13 @@ class EndToEndTest(unittest.TestCase):
         self.root = pathlib.Path(self._tmp.name)
         self.repo = self.root / "repo"
         (self.repo / "benchmarks").mkdir(parents=True)
-        (self.repo / "CMakeLists.txt").write_text(FAKE_CMAKELISTS)
-        (self.repo / "benchmarks" / "bench_main.cpp").write_text("// the real bench lives here\n")
+        (self.repo / "CMakeLists.txt").write_text(FAKE_CMAKELISTS, encoding="utf-8")
+        (self.repo / "benchmarks" / "bench_main.cpp").write_text("// the real bench lives here\n", encoding="utf-8")
         self.write_bench(1000)
         (self.repo / "experiments").mkdir()
-        (self.repo / "experiments" / "compare.json").write_text(json.dumps(EXPERIMENT))
+        (self.repo / "experiments" / "compare.json").write_text(json.dumps(EXPERIMENT), encoding="utf-8")
         self.valgrind = self.root / "valgrind"
-        self.valgrind.write_text(FAKE_VALGRIND)
+        self.valgrind.write_text(FAKE_VALGRIND, encoding="utf-8")
         self.valgrind.chmod(0o755)
         self.git("init", "-q", "-b", "main")
         self.git("add", ".")
@@ -232,7 +232,7 @@ class EndToEndTest(unittest.TestCase):
 
     def write_bench(self, ir_per_step):
         path = self.repo / "benchmarks" / "bench.py"
-        path.write_text(FAKE_BENCH.format(ir=ir_per_step))
+        path.write_text(FAKE_BENCH.format(ir=ir_per_step), encoding="utf-8")
         path.chmod(0o755)
 
     def compare(self, *extra):
@@ -247,7 +247,7 @@ class EndToEndTest(unittest.TestCase):
         code, out, err = self.compare("--base", "HEAD")
         self.assertEqual(code, 0, err)
         self.assertIn("pass", out)
-        report = json.loads((self.root / "out" / "compare.json").read_text())
+        report = json.loads((self.root / "out" / "compare.json").read_text(encoding="utf-8"))
         self.assertEqual(len(report["benchmarks"]), 2)
         self.assertEqual(report["benchmarks"][0]["ir"]["base_per_step"], 1000)
         self.assertFalse(report["new"]["dirty"])
@@ -257,11 +257,11 @@ class EndToEndTest(unittest.TestCase):
         self.assertEqual(code, 1, err)
         self.assertIn("REGRESSION: step/n:100/gridder:B: instructions per step +5.00 %", out)
         self.assertIn("--toggle-collect=sphnl::bench::timed_window*", out)
-        report = json.loads((self.root / "out" / "compare.json").read_text())
+        report = json.loads((self.root / "out" / "compare.json").read_text(encoding="utf-8"))
         self.assertTrue(report["new"]["dirty"])
         self.assertEqual(report["base"]["sha"], self.git("rev-parse", "HEAD"))
         # the user's tree is untouched and the base worktree is registered once
-        self.assertIn("1050", (self.repo / "benchmarks" / "bench.py").read_text())
+        self.assertIn("1050", (self.repo / "benchmarks" / "bench.py").read_text(encoding="utf-8"))
         self.assertEqual(self.git("worktree", "list").count("worktree-"), 1)
 
     def test_unknown_ref(self):
@@ -271,9 +271,9 @@ class EndToEndTest(unittest.TestCase):
 
     def test_base_that_does_not_build(self):
         base = self.git("rev-parse", "HEAD")
-        (self.repo / "CMakeLists.txt").write_text("this is ( not cmake\n")
+        (self.repo / "CMakeLists.txt").write_text("this is ( not cmake\n", encoding="utf-8")
         broken = self.commit("broken")
-        (self.repo / "CMakeLists.txt").write_text(FAKE_CMAKELISTS)
+        (self.repo / "CMakeLists.txt").write_text(FAKE_CMAKELISTS, encoding="utf-8")
         code, _, err = self.compare("--base", "HEAD")
         self.assertEqual(code, 2)
         self.assertIn(f"base HEAD ({broken[:12]}) does not build", err)
@@ -283,7 +283,7 @@ class EndToEndTest(unittest.TestCase):
     def test_base_predating_the_benchmark_interface(self):
         self.git("rm", "-q", "benchmarks/bench_main.cpp")
         self.commit("no benchmarks")
-        (self.repo / "benchmarks" / "bench_main.cpp").write_text("//\n")
+        (self.repo / "benchmarks" / "bench_main.cpp").write_text("//\n", encoding="utf-8")
         code, _, err = self.compare("--base", "HEAD")
         self.assertEqual(code, 2)
         self.assertIn("predates the benchmark interface", err)

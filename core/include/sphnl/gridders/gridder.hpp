@@ -27,6 +27,10 @@ class Gridder {
   std::uint32_t max_cell_count() const { return max_cell_count_; }
   /// Every gridded particle, in cell-key order (the reordering permutation).
   virtual void cell_order_permutation(std::vector<std::uint32_t>& order) const;
+  /// After the particle arrays were permuted, replaces every stored particle
+  /// index i by new_index_of_old[i]: O(N), where gridding again would cost a
+  /// second build (for gridder A, a second round of insertions).
+  virtual void renumber(std::span<const std::uint32_t> new_index_of_old) = 0;
   /// Bytes allocated for this gridder's structures (capacity x element size).
   virtual std::size_t bytes() const = 0;
 

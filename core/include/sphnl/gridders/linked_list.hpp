@@ -51,11 +51,26 @@ class LinkedList final : public Gridder {
       for (std::uint32_t p = head_[k]; p != kEnd; p = next_[p]) order.push_back(p);
   }
 
-  std::size_t bytes() const override { return (head_.capacity() + next_.capacity()) * sizeof(std::uint32_t); }
+  void renumber(std::span<const std::uint32_t> new_index_of_old) override {
+    // next is indexed by particle: move every link to the particle's new slot.
+    scratch_.resize(next_.size());
+    for (std::uint32_t k = 0; k < num_keys_; ++k) {
+      if (head_[k] == kEnd) continue;
+      for (std::uint32_t p = head_[k]; p != kEnd; p = next_[p])
+        scratch_[new_index_of_old[p]] = next_[p] == kEnd ? kEnd : new_index_of_old[next_[p]];
+      head_[k] = new_index_of_old[head_[k]];
+    }
+    next_.swap(scratch_);
+  }
+
+  std::size_t bytes() const override {
+    return (head_.capacity() + next_.capacity() + scratch_.capacity()) * sizeof(std::uint32_t);
+  }
 
  private:
   std::vector<std::uint32_t> head_;  // first particle of each cell
   std::vector<std::uint32_t> next_;  // next particle of the same cell
+  std::vector<std::uint32_t> scratch_;  // next_ being renumbered after reordering
 };
 
 }  // namespace sphnl

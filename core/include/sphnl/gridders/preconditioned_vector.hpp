@@ -43,6 +43,10 @@ class PreconditionedVector final : public Gridder {
     order.assign(parts_sorted_.begin(), parts_sorted_.end());
   }
 
+  void renumber(std::span<const std::uint32_t> new_index_of_old) override {
+    for (auto& p : parts_sorted_) p = new_index_of_old[p];
+  }
+
   std::size_t bytes() const override {
     return (cells_begin_.capacity() + cursor_.capacity() + parts_sorted_.capacity()) * sizeof(std::uint32_t);
   }

@@ -53,6 +53,10 @@ class SlidingVector final : public Gridder {
     order.assign(parts_sorted_.begin(), parts_sorted_.begin() + stored_);
   }
 
+  void renumber(std::span<const std::uint32_t> new_index_of_old) override {
+    for (std::uint32_t k = 0; k < stored_; ++k) parts_sorted_[k] = new_index_of_old[parts_sorted_[k]];
+  }
+
   std::size_t bytes() const override {
     return (cells_begin_.capacity() + parts_sorted_.capacity()) * sizeof(std::uint32_t);
   }

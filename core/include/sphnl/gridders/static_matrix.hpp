@@ -39,6 +39,13 @@ class StaticMatrix final : public Gridder {
     }
   }
 
+  void renumber(std::span<const std::uint32_t> new_index_of_old) override {
+    for (std::uint32_t k = 0; k < num_keys_; ++k) {
+      std::uint32_t* row = parts_in_cell_.data() + std::size_t{k} * max_parts_;
+      for (std::uint32_t s = 0; s < n_parts_in_cell_[k]; ++s) row[s] = new_index_of_old[row[s]];
+    }
+  }
+
   std::size_t bytes() const override {
     return (parts_in_cell_.capacity() + n_parts_in_cell_.capacity()) * sizeof(std::uint32_t);
   }

@@ -1,0 +1,314 @@
+"""One function per figure of Domínguez et al. (2011), "Neighbour lists in SPH".
+
+Each `figNN(data, out)` takes the rows of the experiment the figure is drawn
+from (plots/results.load_run, filtered on `experiment`), writes
+out/figNN.png and out/figNN.svg (headless, deterministic, atomic) and returns
+one sentence describing what the data show. `table1(data, exp)` returns the
+markdown of Table I and its sentence. Axes follow the paper: runtime or memory
+against N, improvement (t_ref - t)/t_ref in percent against N or n_s; runtime
+is wall seconds per step (the paper plots hours for its whole simulation).
+"""
+import io
+import os
+
+os.environ.setdefault("SOURCE_DATE_EPOCH", "0")  # fixed dates in SVG/PDF metadata
+import matplotlib  # noqa: E402
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
+import numpy as np  # noqa: E402
+
+from results import improvement, medians, pick, write_atomic  # noqa: E402
+
+plt.rcParams.update({"svg.hashsalt": "sphnl", "savefig.dpi": 110, "axes.grid": True,
+                     "grid.alpha": 0.3, "font.size": 10, "legend.fontsize": 9})
+GRIDDERS = {"A": "A sliding vector", "B": "B preconditioned vector",
+            "C": "C static matrix", "D": "D linked list"}
+LISTS = {"cll": "CLL", "vlc": "VL$_C$", "vlx": "VL$_X$"}
+ORDERS = {"sort_x": "SortX", "sort_xy": "SortXY (Z-order)",
+          "sort_xyz": "SortXYZ (Z-order)", "hilbert": "Hilbert (ours)"}
+SERIAL = {"order": "sort_x", "kgc": 0, "threads": 1}  # the paper's serial SortX runs
+SORTED_B = {**SERIAL, "gridder": "B", "reorder": 1}   # its choice from Section 3.3 on
+N_LABEL = "N (particles)"
+NS_LABEL = "$n_s$ (steps a Verlet list is kept)"
+MARKERS = "osD^vx*"
+
+
+class NoData(Exception):
+    """The results lack what a figure needs; the message says what."""
+
+
+def _med(data, **equal):
+    med = pick(medians(data), **equal) if len(data) else data
+    if med.empty:
+        raise NoData("no successful benchmark entries with "
+                     + (", ".join(f"{k}={v}" for k, v in equal.items()) or "any parameters"))
+    return med
+
+
+def _plain(label):
+    return label.replace("$_C$", "_C").replace("$_X$", "_X")
+
+
+def _fmt_n(n):
+    return f"{n:,.0f}".replace(",", " ")
+
+
+def _curves(med, by, y, labels, x="N"):
+    """[(label, xs, ys)] with one curve per value of column `by`, in `labels` order."""
+    out = []
+    for key, label in labels.items():
+        part = med[med[by] == key].sort_values(x)
+        if len(part):
+            out.append((label, part[x].to_numpy(float), part[y].to_numpy(float)))
+    if not out:
+        raise NoData(f"no values of {by} among {list(labels)}")
+    return out
+
+
+def _gain_curves(med, labels, ref, var, x="N", on=("n",)):
+    """Improvement curves, one per key of `labels`: runs var(key) against ref(key)."""
+    out = []
+    for key, label in labels.items():
+        imp = improvement(med, ref(key), var(key), on=on, x=x)
+        if len(imp):
+            out.append((label, imp[x].to_numpy(float), imp["imp"].to_numpy(float)))
+    if not out:
+        raise NoData(f"no reference runs matching the variants {list(labels)}")
+    return out
+
+
+def _save(fig, out, fig_id):
+    for ext, meta in (("png", {"Software": None}), ("svg", {"Date": None})):
+        buf = io.BytesIO()
+        fig.savefig(buf, format=ext, metadata=meta, bbox_inches="tight")
+        write_atomic(out / f"{fig_id}.{ext}", buf.getvalue())
+    plt.close(fig)
+
+
+def _draw(out, fig_id, title, xlabel, panels):
+    """Draw panels [(ylabel, curves, zero_line)] side by side and save PNG+SVG."""
+    fig, axes = plt.subplots(1, len(panels), figsize=(6.4 * len(panels), 4.4), squeeze=False)
+    for ax, (ylabel, curves, zero) in zip(axes[0], panels):
+        for i, (label, xs, ys) in enumerate(curves):
+            ax.plot(xs, ys, marker=MARKERS[i % len(MARKERS)], label=label)
+        xs_all = np.concatenate([c[1] for c in curves])
+        if xs_all.min() > 0 and xs_all.max() / xs_all.min() > 50:
+            ax.set_xscale("log")
+        if zero:
+            ax.axhline(0, color="0.3", lw=0.8)
+        else:  # runtimes, memory, speed-ups: positive quantities drawn from 0
+            ax.set_ylim(bottom=0)
+        ax.set(xlabel=xlabel, ylabel=ylabel)
+        if xlabel == NS_LABEL:
+            ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.legend()
+    fig.suptitle(title)
+    _save(fig, out, fig_id)
+
+
+def _at_end(curves, unit, digits=3, best=None):
+    """'At N = x: a 1.2 ms, b ...' at the largest x shared by all curves;
+    best='min'/'max' ranks the curves and gives ratios to the best."""
+    x_end = min(c[1].max() for c in curves)
+    vals = {lab: float(ys[np.argmin(abs(xs - x_end))]) for lab, xs, ys in curves}
+    order = sorted(vals, key=vals.get, reverse=best == "max") if best else list(vals)
+    parts = [f"{_plain(lab)} {vals[lab]:.{digits}g}{unit}" for lab in order]
+    if best == "min" and len(order) > 1 and vals[order[0]] > 0:
+        parts = [parts[0]] + [f"{p} ({vals[lab] / vals[order[0]]:.2f}x)"
+                              for p, lab in zip(parts[1:], order[1:])]
+    return x_end, ", ".join(parts)
+
+
+METRICS = {"t": ("wall time per step (s)", " s", "seconds per step from fastest"),
+           "mem_mb": ("neighbour-structure memory (MB)", " MB", "memory from smallest")}
+
+
+def _metric_vs_n(data, out, fig_id, title, y, by, labels, **equal):
+    """Runtime (y='t') or memory (y='mem_mb') vs N, one curve per value of `by`."""
+    ylabel, unit, what = METRICS[y]
+    curves = _curves(_med(data, **equal), by, y, labels)
+    _draw(out, fig_id, title, N_LABEL, [(ylabel, curves, False)])
+    n, text = _at_end(curves, unit, best="min")
+    return f"At N = {_fmt_n(n)}, {what}: {text}."
+
+
+def _gain_vs_n(data, out, fig_id, title, labels, ref, var, **equal):
+    curves = _gain_curves(_med(data, **equal), labels, ref, var)
+    _draw(out, fig_id, title, N_LABEL, [("improvement in time (%)", curves, True)])
+    n, text = _at_end(curves, " %", best="max")
+    return f"At N = {_fmt_n(n)}, improvement from largest: {text}."
+
+
+def fig06(data, out):
+    """Fig. 6: runtime of gridders A-D vs N (CLL, not reordered, SortX)."""
+    return _metric_vs_n(data, out, "fig06", "Fig. 6: runtime per gridder (CLL, not reordered)",
+                        "t", "gridder", GRIDDERS, **SERIAL, list="cll", reorder=0)
+
+
+def fig07(data, out):
+    """Fig. 7: memory of gridders A-D vs N (not reordered)."""
+    return _metric_vs_n(data, out, "fig07", "Fig. 7: memory per gridder (not reordered)",
+                        "mem_mb", "gridder", GRIDDERS, **SERIAL, list="cll", reorder=0)
+
+
+def fig08(data, out):
+    """Fig. 8: improvement from reordering per gridder vs N (each vs itself unsorted)."""
+    return _gain_vs_n(data, out, "fig08", "Fig. 8: improvement from reordering per gridder (SortX)",
+                      GRIDDERS, lambda g: {"gridder": g, "reorder": 0},
+                      lambda g: {"gridder": g, "reorder": 1}, **SERIAL, list="cll")
+
+
+def fig09(data, out):
+    """Fig. 9: improvement from reordering per cell ordering vs N, gridder B."""
+    return _gain_vs_n(data, out, "fig09", "Fig. 9: improvement from reordering per ordering (gridder B)",
+                      ORDERS, lambda o: {"order": o, "reorder": 0},
+                      lambda o: {"order": o, "reorder": 1}, list="cll", gridder="B", kgc=0, threads=1)
+
+
+def fig10(data, out):
+    """Fig. 10: runtime of gridders A-D vs N after reordering."""
+    return _metric_vs_n(data, out, "fig10", "Fig. 10: runtime per gridder after reordering",
+                        "t", "gridder", GRIDDERS, **SERIAL, list="cll", reorder=1)
+
+
+def fig11(data, out):
+    """Fig. 11: memory of gridders A-D vs N after reordering."""
+    return _metric_vs_n(data, out, "fig11", "Fig. 11: memory per gridder after reordering",
+                        "mem_mb", "gridder", GRIDDERS, **SERIAL, list="cll", reorder=1)
+
+
+def fig12(data, out):
+    """Fig. 12: runtime of CLL and VL (n_s = 1) vs N."""
+    return _metric_vs_n(data, out, "fig12", "Fig. 12: runtime of CLL and VL ($n_s$ = 1)",
+                        "t", "list", {"cll": "CLL", "vlc": "VL"}, **SORTED_B, ns=1)
+
+
+def fig13(data, out):
+    """Fig. 13: memory of CLL and VL (n_s = 1) vs N."""
+    return _metric_vs_n(data, out, "fig13", "Fig. 13: memory of CLL and VL ($n_s$ = 1)",
+                        "mem_mb", "list", {"cll": "CLL", "vlc": "VL"}, **SORTED_B, ns=1)
+
+
+def _fixed_n(med):
+    """Fig. 14/15 are at one N: 31 239 when measured, else the largest.
+    Returns the rows at that N and the particles actually simulated."""
+    n = 31239 if (med["n"] == 31239).any() else med["n"].max()
+    rows = med[med["n"] == n]
+    return rows, rows["N"].median()
+
+
+def fig14(data, out):
+    """Fig. 14: improvement of VL_C and VL_X over CLL vs n_s (CLL paired at each n_s)."""
+    med, n = _fixed_n(_med(data, **SORTED_B))
+    curves = _gain_curves(med, {"vlc": LISTS["vlc"], "vlx": LISTS["vlx"]}, lambda _: {"list": "cll"},
+                          lambda lst: {"list": lst}, x="ns", on=("n", "ns"))
+    _draw(out, "fig14", f"Fig. 14: improvement over CLL vs $n_s$, N = {_fmt_n(n)}", NS_LABEL,
+          [("improvement in time (%)", curves, True)])
+    best = [f"{_plain(lab)} {ys.max():.2g} % at n_s = {xs[ys.argmax()]:.0f}" for lab, xs, ys in curves]
+    return f"At N = {_fmt_n(n)} the largest improvements over CLL are " + " and ".join(best) + "."
+
+
+def fig15(data, out):
+    """Fig. 15: memory of CLL, VL_X and VL_C vs n_s."""
+    med, n = _fixed_n(_med(data, **SORTED_B))
+    curves = _curves(med, "list", "mem_mb", LISTS, x="ns")
+    _draw(out, "fig15", f"Fig. 15: memory vs $n_s$, N = {_fmt_n(n)}", NS_LABEL,
+          [("neighbour-structure memory (MB)", curves, False)])
+    ns, text = _at_end(curves, " MB", best="min")
+    return f"At N = {_fmt_n(n)} and n_s = {ns:.0f}, memory from smallest: {text}."
+
+
+def fig16(data, out):
+    """Fig. 16: improvement of VL_C and VL_X over CLL at n_s = 7 vs N."""
+    return _gain_vs_n(data, out, "fig16", "Fig. 16: improvement over CLL at $n_s$ = 7",
+                      {"vlc": LISTS["vlc"], "vlx": LISTS["vlx"]}, lambda _: {"list": "cll"},
+                      lambda lst: {"list": lst}, **SORTED_B, ns=7)
+
+
+def fig17(data, out):
+    """Fig. 17: improvement of VL_X over CLL, with and without KGC, n_s = 7 vs N."""
+    med = _med(data, order="sort_x", threads=1, gridder="B", reorder=1, ns=7)  # both kgc
+    curves = _gain_curves(med, {0: "VL$_X$", 1: "VL$_X$ with KGC"},
+                          lambda k: {"list": "cll", "kgc": k}, lambda k: {"list": "vlx", "kgc": k})
+    _draw(out, "fig17", "Fig. 17: improvement of VL$_X$ over CLL, with and without KGC ($n_s$ = 7)",
+          N_LABEL, [("improvement in time (%)", curves, True)])
+    n, text = _at_end(curves, " %", best="max")
+    return f"At N = {_fmt_n(n)}, improvement of VL_X over CLL (same correction): {text}."
+
+
+def cellindex(data, out):
+    """Section 3.2: cost of the cell index per particle for each ordering ('~100x')."""
+    med = _med(data, family="cellindex")
+    med = med.assign(ns_per=1e9 * med["s_per_particle"])
+    curves = _curves(med, "order", "ns_per", ORDERS)
+    _draw(out, "cellindex", "Cost of the cell index per particle (Section 3.2)", N_LABEL,
+          [("ns per particle", curves, False)])
+    n, text = _at_end(curves, " ns", best="min")
+    return f"At N = {_fmt_n(n)}, nanoseconds per particle from cheapest: {text}."
+
+
+def beyond_threads(data, out):
+    """Beyond the paper: 1 vs 2 threads for CLL and VL_X (n_s = 7), larger N."""
+    med = _med(data)
+    med = med.assign(us=1e6 * med["t"] / med["N"], key=med["list"] + "/" + med["threads"].astype(str))
+    labels = {f"{lst}/{th}": f"{LISTS[lst]}, {th} thread{'s' if th > 1 else ''}"
+              for lst in LISTS for th in sorted(med["threads"].unique())}
+    per = _curves(med, "key", "us", labels)
+    speed = []
+    for lst in LISTS:
+        one = pick(med, list=lst, threads=1).set_index("n")
+        for th in sorted(t for t in med["threads"].unique() if t > 1):
+            many = pick(med, list=lst, threads=th).set_index("n")
+            common = one.index.intersection(many.index)
+            if len(common):
+                speed.append((f"{LISTS[lst]}, {th} threads", one.loc[common, "N"].to_numpy(float),
+                              (one.loc[common, "t"] / many.loc[common, "t"]).to_numpy(float)))
+    panels = [("wall time per particle and step (µs)", per, False)]
+    if speed:
+        panels.append(("speed-up over 1 thread", speed, False))
+    _draw(out, "beyond_threads", "Beyond the paper: threads and larger N", N_LABEL, panels)
+    n, text = _at_end(speed or per, "x" if speed else " µs", best="max" if speed else "min")
+    return f"At N = {_fmt_n(n)}, " + (f"speed-up over one thread: {text}." if speed
+                                       else f"µs per particle-step: {text}.")
+
+
+FIGURES = {f.__name__: f for f in (fig06, fig07, fig08, fig09, fig10, fig11, fig12, fig13,
+                                   fig14, fig15, fig16, fig17, cellindex, beyond_threads)}
+
+PHASES = (("Neighbour List", "s_neighbour_list", "list"), ("Force Computation", "s_force", "force"),
+          ("System Update", "s_update", "update"))
+
+
+def table1(data, exp):
+    """Table I: share of each phase in the runtime of a step, CLL and VL (n_s = 1).
+
+    Returns (markdown, sentence). Shares are of the sum of the three timed
+    phases; the paper values come from the experiment's claims."""
+    med = _med(data, ns=1, kgc=0)
+    n = med["n"].max()
+    paper = {c["id"]: c["paper_value"] for c in exp.get("claims", [])}
+    cols, shares = [], {}
+    for lst, key in (("cll", "cll"), ("vlc", "vl")):
+        row = pick(med, n=n, list=lst)
+        if row.empty:
+            raise NoData(f"no {lst} run at N = {n}")
+        row = row.iloc[0]
+        total = sum(row[col] for _, col, _ in PHASES)
+        shares[key] = {ph: 100 * row[col] / total for _, col, ph in PHASES}
+        cols.append(f"{100 * total / row['t']:.1f} %")
+    lines = ["| Phase | CLL, paper | CLL, measured | VL, paper | VL, measured |",
+             "|---|---:|---:|---:|---:|"]
+    for name, _, ph in PHASES:
+        lines.append(f"| {name} | {paper.get(f'table1_cll_{ph}', '?')} % | {shares['cll'][ph]:.1f} % "
+                     f"| {paper.get(f'table1_vl_{ph}', '?')} % | {shares['vl'][ph]:.1f} % |")
+    reps = int(pick(med, n=n)["reps"].min())
+    md = "\n".join(lines) + (
+        f"\n\nMeasured at N = {_fmt_n(pick(med, n=n)['N'].iloc[0])} (gridder B, SortX, reordered), "
+        f"median of {reps} repetition(s); VL = VL_C with n_s = 1. Shares are of the sum of the "
+        f"three timed phases, which covers {cols[0]} (CLL) and {cols[1]} (VL) of the wall time per step.\n")
+    sentence = (f"The neighbour list takes {shares['cll']['list']:.1f} % of a CLL step and "
+                f"{shares['vl']['list']:.1f} % of a VL step (paper: "
+                f"{paper.get('table1_cll_list', '?')} % and {paper.get('table1_vl_list', '?')} %).")
+    return md, sentence

@@ -1,0 +1,176 @@
+#!/usr/bin/python3
+"""Stand-in for build/benchmarks/sphnl_bench (docs/CONTRACTS.md §2) for the
+harness tests: same arguments, Google Benchmark 1.7.1-shaped console output
+and JSON, plausible timings that follow the paper's trends, deterministic
+from a seed. Runs in milliseconds.
+
+Test knobs (flag or environment variable):
+  --fake-seed S          FAKE_BENCH_SEED     noise seed (default 1)
+  --fake-regress K:V=F   FAKE_BENCH_REGRESS  multiply the time of configs whose
+                                             name has segment K:V by F (comma list)
+  --fake-error K:V       FAKE_BENCH_ERROR    report configs with segment K:V as errors
+  --fake-fail            FAKE_BENCH_FAIL=1   write half the output, then exit 1
+  --fake-delay S         FAKE_BENCH_DELAY    sleep S seconds per benchmark
+"""
+import argparse
+import json
+import math
+import os
+import pathlib
+import random
+import sys
+import time
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "plots"))
+import results as R  # noqa: E402
+
+GB_LINE = "-" * 100
+
+
+def step_model(p):
+    """Seconds per step and phase shares of one `step` config (made-up but
+    paper-shaped: A quadratic unsorted, reordering helps, VL best near n_s=7)."""
+    n = p["n"]
+    t = 1.0e-6 * n * (1 + 0.1 * math.log(n / 1000))
+    if p["reorder"] == 0:
+        t *= {"D": 1.15}.get(p["gridder"], 1.3)
+        t *= {"B": 1.05, "C": 1.08}.get(p["gridder"], 1.0)
+    t *= {"sort_x": 1.0, "sort_xy": 1.03, "sort_xyz": 1.04, "hilbert": 1.02}[p["order"]]
+    if p["gridder"] == "A":
+        t += 2e-11 * n * n if p["reorder"] == 0 else 1.0e-6 * n
+    share_list = 0.03
+    if p["list"] != "cll":
+        gain = 0.05 - 0.04 * math.log(p["ns"] / 7) ** 2 + 0.01 * math.log10(n / 31239)
+        gain -= 0.01 if p["list"] == "vlc" else 0.0
+        t *= 1 - gain * (2 if p["kgc"] else 1)
+        share_list = 0.2 if p["ns"] == 1 else 0.04
+    if p["kgc"]:
+        t *= 1.8
+    if p["threads"] > 1:
+        t /= 0.9 * p["threads"]
+    return t, share_list
+
+
+def memory_model(p):
+    """Bytes of the neighbour structures (nl_bytes)."""
+    n, cells = p["n"], p["n"] * 4
+    grid = {"A": 4 * (n + cells), "B": 4 * (2 * n + cells), "C": 4 * cells * 41,
+            "D": 4 * (2 * n + cells)}[p["gridder"]]
+    if p["reorder"]:
+        grid += n * (2 if p["gridder"] != "D" else 6)
+    if p["list"] == "cll":
+        return grid
+    skin = 0.04 * p["ns"] * (1.2 if p["list"] == "vlc" else 1.0)
+    return grid + int(4 * 55 * n * (1 + skin) ** 3)
+
+
+def counters(p, t, share_list, steps):
+    """The user counters of CONTRACTS.md for one `step` repetition."""
+    rebuilds = steps if p["list"] == "cll" else max(1, math.ceil(steps / p["ns"]))
+    return {"n": p["n"], "n_fluid": int(p["n"] * 0.4), "window_steps": steps,
+            "s_per_step": t, "s_neighbour_list": t * share_list,
+            "s_force": t * (0.98 - share_list), "s_update": t * 0.02,
+            "nl_bytes": memory_model(p), "peak_rss_bytes": 50_000_000 + 400 * p["n"],
+            "rebuilds": rebuilds, "mean_steps_per_list": steps / rebuilds,
+            "max_steps_per_list": math.ceil(steps / rebuilds),
+            "candidates_per_particle": 120.0, "interactions_per_particle": 55.0,
+            "pairs_per_s": 27.5 * p["n"] / t, "vl_misses": 0,
+            "s_per_particle_step": t / p["n"]}
+
+
+def parse_args(argv):
+    env = os.environ.get
+    p = argparse.ArgumentParser()
+    p.add_argument("--experiment", required=True)
+    p.add_argument("--size", required=True, choices=R.SIZES)
+    p.add_argument("--cache-dir")
+    p.add_argument("--benchmark_out")
+    p.add_argument("--benchmark_out_format", default="json")
+    p.add_argument("--benchmark_repetitions", type=int, default=1)
+    p.add_argument("--benchmark_min_time", default="0")
+    p.add_argument("--fake-seed", default=env("FAKE_BENCH_SEED", "1"))
+    p.add_argument("--fake-regress", default=env("FAKE_BENCH_REGRESS", ""))
+    p.add_argument("--fake-error", default=env("FAKE_BENCH_ERROR", ""))
+    p.add_argument("--fake-fail", action="store_true", default=env("FAKE_BENCH_FAIL") == "1")
+    p.add_argument("--fake-delay", type=float, default=float(env("FAKE_BENCH_DELAY", "0")))
+    return p.parse_args(argv)
+
+
+def main(argv=None):
+    args = parse_args(argv)
+    try:
+        float(args.benchmark_min_time)  # GB 1.7.1 rejects '0.5s' and exits 1
+    except ValueError:
+        print(f"invalid --benchmark_min_time={args.benchmark_min_time}", file=sys.stderr)
+        return 1
+    exp = json.loads(pathlib.Path(args.experiment).read_text(encoding="utf-8"))
+    family, size, reps = exp["benchmark"], args.size, args.benchmark_repetitions
+    steps = exp["window_steps"][size]
+    regress = dict(kv.split("=") for kv in args.fake_regress.split(",") if kv)
+    errs = set(filter(None, args.fake_error.split(",")))
+    print(f"Running {sys.argv[0]}\nRun on (2 X 2600 MHz CPU s)\n"
+          "***WARNING*** Library was built as DEBUG. Timings may be affected.", file=sys.stderr)
+    print(f"{GB_LINE}\n{'Benchmark':<60}{'Time':>13}{'CPU':>13} Iterations UserCounters...\n{GB_LINE}",
+          flush=True)
+    entries = []
+    points = R.sweep_points(exp, size)
+    if args.fake_fail:
+        points = points[: len(points) // 2]
+    for index, point in enumerate(points):
+        name = R.format_run_name(family, point)
+        segs = set(name.split("/")[1:])
+        factor = math.prod(float(f) for k, f in regress.items() if k in segs)
+        runs = []
+        for rep in range(reps):
+            rng = random.Random(f"{args.fake_seed}|{name}|{rep}")
+            noise = factor * (1 + 0.02 * rng.gauss(0, 1))
+            if family == "step":
+                t, share = step_model(point)
+                ctr = counters(point, t * noise, share, steps)
+                real = ctr["s_per_step"] * steps
+            else:  # cellindex: passes over n particles, >= 2e6 keys in all
+                per = {"sort_x": 1e-9, "sort_xy": 3e-9, "sort_xyz": 4e-9, "hilbert": 9e-9}[point["order"]]
+                passes = max(1, 2_000_000 // point["n"])
+                real = per * point["n"] * passes * noise
+                ctr = {"n": point["n"], "s_per_particle": per * noise,
+                       "cell_keys": 4 * point["n"], "cells": 4 * point["n"]}
+            entry = {"name": name, "family_index": 0, "per_family_instance_index": index,
+                     "run_name": name, "run_type": "iteration", "repetitions": reps,
+                     "repetition_index": rep, "threads": 1, "iterations": 1,
+                     "real_time": real * 1e9, "cpu_time": real * 0.99e9, "time_unit": "ns"}
+            if segs & errs:
+                entry.update(error_occurred=True, error_message="fake error: cell overflow")
+            else:
+                entry.update(ctr)
+            runs.append(entry)
+            shown = " ERROR OCCURRED: 'fake error'" if segs & errs else \
+                f"{real * 1e3:10.2f} ms {real * 0.99e3:10.2f} ms          1"
+            print(f"{name:<60}{shown}", flush=True)
+            time.sleep(args.fake_delay)
+        entries += runs
+        if reps > 1 and not segs & errs:
+            for agg in ("mean", "median", "stddev", "cv"):
+                entries.append({**runs[0], "name": f"{name}_{agg}", "run_type": "aggregate",
+                                "aggregate_name": agg, "aggregate_unit": "time"})
+                entries[-1].pop("repetition_index")
+                print(f"{name + '_' + agg:<60}{0.0:10.2f} ms", flush=True)
+    doc = {"context": {"date": "2024-01-01T00:00:00+00:00", "host_name": "fake",
+                       "executable": sys.argv[0], "num_cpus": 2, "mhz_per_cpu": 2600,
+                       "cpu_scaling_enabled": False, "caches": [], "load_avg": [0, 0, 0],
+                       "library_build_type": "debug", "sphnl_build_type": "Release",
+                       "sphnl_compiler": "fake", "sphnl_git_revision": "fake",
+                       "sphnl_march": "native", "sphnl_cpu": "fake", "sphnl_size": size,
+                       "sphnl_experiment": exp["id"]},
+           "benchmarks": entries}
+    if args.benchmark_out:
+        text = json.dumps(doc, indent=2)
+        pathlib.Path(args.benchmark_out).write_text(text[: len(text) // 2] if args.fake_fail else text,
+                                                    encoding="utf-8")
+    if args.fake_fail:
+        print("fake failure: snapshot checksum mismatch", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,66 @@
+"""End to end at the tiny size: the real sphnl_bench -> results JSON -> figures
+and REPRODUCTION.md (issue 4). `make test` sets SPHNL_BUILD_DIR; without it
+(e.g. a bare `python -m unittest`) the test is skipped, with it a missing
+binary is a failure."""
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+PYTHON = sys.executable
+
+
+@unittest.skipUnless(os.environ.get("SPHNL_BUILD_DIR"), "SPHNL_BUILD_DIR not set (make test sets it)")
+class TinyPipeline(unittest.TestCase):
+    def test_every_figure_and_the_claims_table_come_from_the_fresh_json(self):
+        bench = Path(os.environ["SPHNL_BUILD_DIR"]) / "benchmarks" / "sphnl_bench"
+        self.assertTrue(bench.is_file(), f"{bench} is missing: build it with `make build`")
+        with tempfile.TemporaryDirectory() as tmp:
+            results = Path(tmp) / "results"
+            run = subprocess.run(
+                [PYTHON, str(ROOT / "experiments" / "run.py"), "--size", "tiny", "--run-id", "e2e",
+                 "--results-dir", str(results), "--bench", str(bench), "--cache-dir", str(Path(tmp) / "cache")],
+                cwd=ROOT, capture_output=True, text=True, timeout=600)
+            self.assertEqual(run.returncode, 0, run.stdout[-2000:] + run.stderr[-2000:])
+            run_dir = results / "e2e"
+            experiments = sorted(p.stem for p in (ROOT / "experiments").glob("*.json"))
+            ran = []
+            for exp_id in experiments:
+                spec = json.loads((ROOT / "experiments" / f"{exp_id}.json").read_text(encoding="utf-8"))
+                if spec.get("uses") or exp_id == "compare":
+                    continue
+                out = run_dir / f"{exp_id}.json"
+                self.assertTrue(out.is_file(), f"{exp_id}: no results JSON")
+                doc = json.loads(out.read_text(encoding="utf-8"))
+                names = [b["name"] for b in doc["benchmarks"]]
+                self.assertTrue(names, f"{exp_id}: no benchmarks")
+                self.assertFalse([b for b in doc["benchmarks"] if b.get("error_occurred")], f"{exp_id}: errors")
+                self.assertIn("sphnl_git_revision", doc["context"])
+                ran.append(exp_id)
+            self.assertIn("fig06", ran)
+            self.assertIn("fig14", ran)
+
+            report = subprocess.run([PYTHON, str(ROOT / "plots" / "report.py"), str(run_dir)],
+                                    cwd=ROOT, capture_output=True, text=True, timeout=600,
+                                    env={**os.environ, "MPLBACKEND": "Agg"})
+            self.assertEqual(report.returncode, 0, report.stdout[-2000:] + report.stderr[-2000:])
+            newest_json = max((run_dir / f"{e}.json").stat().st_mtime for e in ran)
+            for fig in ["fig%02d" % k for k in range(6, 18)]:
+                for ext in ("png", "svg"):
+                    path = run_dir / "figures" / f"{fig}.{ext}"
+                    self.assertTrue(path.is_file() and path.stat().st_size > 1000, f"{path} missing or empty")
+                    self.assertGreaterEqual(path.stat().st_mtime, newest_json, f"{path} older than the JSON")
+            table1 = (run_dir / "table1.md").read_text(encoding="utf-8")
+            for phase in ("Neighbour List", "Force Computation", "System Update"):
+                self.assertIn(f"| {phase} |", table1)
+            reproduction = (run_dir / "REPRODUCTION.md").read_text(encoding="utf-8")
+            self.assertIn("| Figure | Claim | Paper | Measured | Verdict | Note |", reproduction)
+            self.assertIn(str(run_dir), reproduction)
+
+
+if __name__ == "__main__":
+    unittest.main()
