@@ -97,7 +97,7 @@ std::string run_usage() {
   return "usage: sphnl run [--config FILE.json] [--set key=value]... [--out DIR] [--quiet]\n"
          "\n"
          "Runs the dam break with obstacle of Dominguez et al. 2011, section 2.2.\n"
-         "  --config FILE   JSON object of config keys (defaults: DESIGN.md table)\n"
+         "  --config FILE   JSON object of config keys (see README.md, section 'Configuration')\n"
          "  --set key=value override one key (repeatable; applied after the file)\n"
          "  --out DIR       output directory (default: sphnl-out); receives summary.json,\n"
          "                  snapshots/step_NNNNNN.vtu and .csv, snapshots.pvd\n"

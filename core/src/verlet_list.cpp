@@ -10,25 +10,6 @@ namespace sphnl {
 
 namespace {
 
-// Candidates of buffer entry i among entries (i, total): r^2 < radius2 and not
-// two boundary particles. Pairs at r^2 <= 1e-18 are kept: they may separate
-// during the life of the list; the loop's filter_list drops them while they
-// coincide.
-template <class Emit>
-std::uint32_t list_candidates(const ParticleView& v, std::uint32_t i, std::uint32_t total, double radius2, Emit&& emit) {
-  const double xi = v.x[i], yi = v.y[i], zi = v.z[i], fi = v.is_fluid[i];
-  std::uint32_t n = 0;
-  for (std::uint32_t j = i + 1; j < total; ++j) {
-    const double dx = xi - v.x[j], dy = yi - v.y[j], dz = zi - v.z[j];
-    const double r2 = dx * dx + dy * dy + dz * dz;
-    if (r2 < radius2 && fi + v.is_fluid[j] > 0.0) {
-      emit(n, j);
-      ++n;
-    }
-  }
-  return n;
-}
-
 std::array<std::vector<double>*, 13> accumulators(ParticleSet& ps) {
   return {&ps.ax, &ps.ay, &ps.az, &ps.drho, &ps.ux, &ps.uy, &ps.uz,
           &ps.kgc_m[0], &ps.kgc_m[1], &ps.kgc_m[2], &ps.kgc_m[3], &ps.kgc_m[4], &ps.kgc_m[5]};
@@ -40,45 +21,78 @@ std::pair<int, int> accumulator_slots(unsigned outputs) {
 
 }  // namespace
 
+std::uint32_t* VerletList::IndexBuffer::room(std::size_t more) {
+  if (size + more > capacity) {
+    const std::size_t grown = std::max(size + more, capacity + capacity / 2 + 1024);
+    std::unique_ptr<std::uint32_t[]> bigger(new std::uint32_t[grown]);  // not value-initialised
+    if (size) std::copy(data.get(), data.get() + size, bigger.get());
+    data.swap(bigger);
+    capacity = grown;
+  }
+  return data.get() + size;
+}
+
 void VerletList::build(const ParticleGrid& pg, ParticleSet& ps, double list_radius2, int threads) {
   const std::size_t n = ps.size();
-  // 1. count the candidates of every particle (offsets_[i + 1] holds i's count)
-  offsets_.assign(n + 1, 0);
-  std::uint32_t* counts = offsets_.data() + 1;
-  sweep_.run(pg.grid(), pg.order(), pg.gridder(), ps, fields::position, threads,
-             [&](int, CellSweep::Scratch& s, std::uint32_t n_home) {
-               const ParticleView v = s.buffer.view();
-               const std::uint32_t total = s.buffer.size();
-               const std::uint32_t* global = s.buffer.index();
-               for (std::uint32_t i = 0; i < n_home; ++i)
-                 counts[global[i]] = list_candidates(v, i, total, list_radius2, [](std::uint32_t, std::uint32_t) {});
-             });
-  // 2. prefix sum
-  std::uint64_t sum = 0;
-  std::uint32_t longest = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    longest = std::max(longest, offsets_[i + 1]);
-    sum += offsets_[i + 1];
-    if (sum > std::numeric_limits<std::uint32_t>::max())
-      throw std::runtime_error("Verlet list holds more than 2^32 candidate pairs (" + std::to_string(n) +
-                               " particles); use list=cll or a smaller list_steps / skin_factor");
-    offsets_[i + 1] = static_cast<std::uint32_t>(sum);
+  if (static_cast<int>(chunks_.size()) < threads) chunks_.resize(threads);
+  for (auto& c : chunks_) {
+    c.neighbours.size = 0;
+    c.rows.clear();
+    c.counts.clear();
   }
-  max_count_ = longest;
-  // 3. fill (capacity is kept between builds: no allocation once it has grown)
-  neighbours_.resize(sum);
-  std::uint32_t* nb = neighbours_.data();
-  const std::uint32_t* off = offsets_.data();
+  // One sweep: each home particle's candidates with r < 2H (coincident pairs
+  // kept) are appended to its thread's chunk as one row.
   sweep_.run(pg.grid(), pg.order(), pg.gridder(), ps, fields::position, threads,
-             [&](int, CellSweep::Scratch& s, std::uint32_t n_home) {
+             [&](int t, CellSweep::Scratch& s, std::uint32_t n_home) {
+               Chunk& c = chunks_[t];
                const ParticleView v = s.buffer.view();
                const std::uint32_t total = s.buffer.size();
                const std::uint32_t* global = s.buffer.index();
                for (std::uint32_t i = 0; i < n_home; ++i) {
-                 std::uint32_t* out = nb + off[global[i]];
-                 list_candidates(v, i, total, list_radius2, [&](std::uint32_t k, std::uint32_t j) { out[k] = global[j]; });
+                 std::uint32_t* out = c.neighbours.room(total - i - 1 + kFilterSlack);
+                 const int m = filter_range(v, i, i + 1, total, list_radius2, out, -1.0);
+                 for (int k = 0; k < m; ++k) out[k] = global[out[k]];
+                 c.neighbours.size += static_cast<std::size_t>(m);
+                 c.rows.push_back(global[i]);
+                 c.counts.push_back(static_cast<std::uint32_t>(m));
                }
              });
+  // Rows in visit order: threads swept contiguous ranges of cells, so their
+  // chunks concatenate in thread order. Particles not gridded (out) get empty rows.
+  std::size_t pairs = 0;
+  for (int t = 0; t < threads; ++t) pairs += chunks_[t].neighbours.size;
+  if (pairs > std::numeric_limits<std::uint32_t>::max())
+    throw std::runtime_error("Verlet list holds more than 2^32 candidate pairs (" + std::to_string(n) +
+                             " particles); use list=cll or a smaller list_steps / skin_factor");
+  if (threads == 1) {
+    std::swap(neighbours_, chunks_[0].neighbours);  // no copy with one thread
+  } else {
+    neighbours_.size = 0;
+    std::uint32_t* dst = neighbours_.room(pairs);
+    for (int t = 0; t < threads; ++t)
+      dst = std::copy(chunks_[t].neighbours.data.get(), chunks_[t].neighbours.data.get() + chunks_[t].neighbours.size, dst);
+    neighbours_.size = pairs;
+  }
+  offsets_.resize(n + 1);
+  visit_.resize(n);
+  visited_.assign(n, 0);
+  std::size_t row = 0;
+  std::uint32_t sum = 0, longest = 0;
+  for (int t = 0; t < threads; ++t)
+    for (std::size_t k = 0; k < chunks_[t].rows.size(); ++k, ++row) {
+      offsets_[row] = sum;
+      visit_[row] = chunks_[t].rows[k];
+      visited_[chunks_[t].rows[k]] = 1;
+      sum += chunks_[t].counts[k];
+      longest = std::max(longest, chunks_[t].counts[k]);
+    }
+  for (std::size_t i = 0; i < n; ++i)
+    if (!visited_[i]) {
+      offsets_[row] = sum;
+      visit_[row++] = static_cast<std::uint32_t>(i);
+    }
+  offsets_[n] = sum;
+  max_count_ = longest;
 }
 
 void VerletList::prepare_loop(ParticleSet& ps, unsigned outputs, int threads) {
@@ -124,11 +138,13 @@ void VerletList::reduce(ParticleSet& ps, unsigned outputs, int threads) {
 }
 
 std::size_t VerletList::list_bytes() const {
-  return (offsets_.capacity() + neighbours_.capacity()) * sizeof(std::uint32_t);
+  return (offsets_.capacity() + visit_.capacity() + neighbours_.capacity) * sizeof(std::uint32_t);
 }
 
 std::size_t VerletList::bytes() const {
-  std::size_t b = list_bytes() + sweep_.bytes();
+  std::size_t b = list_bytes() + sweep_.bytes() + visited_.capacity();
+  for (const auto& c : chunks_)
+    b += (c.neighbours.capacity + c.rows.capacity() + c.counts.capacity()) * sizeof(std::uint32_t);
   for (const auto& s : scratch_) {
     b += s.survivors.capacity() * sizeof(std::uint32_t);
     for (const auto& a : s.acc) b += a.capacity() * sizeof(double);

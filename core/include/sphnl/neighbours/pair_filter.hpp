@@ -30,14 +30,16 @@ inline __m512d gather(__m256i idx, const double* base) {
 #endif
 
 /// Candidates j0..j1-1 (contiguous) of particle i; writes the survivors to `out`.
+/// `min_r2` < 0 keeps coincident pairs (a Verlet list stores them: they may
+/// separate during the life of the list).
 inline int filter_range(const ParticleView& v, std::uint32_t i, std::uint32_t j0, std::uint32_t j1, double support2,
-                        std::uint32_t* __restrict out) {
+                        std::uint32_t* __restrict out, double min_r2 = CubicSpline::kMinR2) {
   const double xi = v.x[i], yi = v.y[i], zi = v.z[i], fi = v.is_fluid[i];
   int n = 0;
   std::uint32_t j = j0;
 #ifdef SPHNL_FILTER_AVX512
   const __m512d vx = _mm512_set1_pd(xi), vy = _mm512_set1_pd(yi), vz = _mm512_set1_pd(zi);
-  const __m512d vs = _mm512_set1_pd(support2), vmin = _mm512_set1_pd(CubicSpline::kMinR2);
+  const __m512d vs = _mm512_set1_pd(support2), vmin = _mm512_set1_pd(min_r2);
   const __m512d vf = _mm512_set1_pd(fi), zero = _mm512_setzero_pd();
   __m256i idx = _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(j0)), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
   const __m256i eight = _mm256_set1_epi32(8);
@@ -57,7 +59,7 @@ inline int filter_range(const ParticleView& v, std::uint32_t i, std::uint32_t j0
   for (; j < j1; ++j) {
     const double dx = xi - v.x[j], dy = yi - v.y[j], dz = zi - v.z[j];
     const double r2 = dx * dx + dy * dy + dz * dz;
-    const bool keep = (r2 < support2) & (r2 > CubicSpline::kMinR2) & (fi + v.is_fluid[j] > 0.0);
+    const bool keep = (r2 < support2) & (r2 > min_r2) & (fi + v.is_fluid[j] > 0.0);
     out[n] = j;  // branch-free compaction
     n += keep;
   }

@@ -4,15 +4,19 @@
 // steps tests only those candidates against 2h. VL_C and VL_X differ only in
 // when the list is rebuilt (Simulation decides); this class builds and walks it.
 //
-// Storage is compressed sparse rows: count per particle, prefix sum, fill.
-// Each unordered pair is stored once (in the list of the particle whose home
-// cell the half-stencil sweep visits first), as the cell-linked list evaluates
-// each pair once; boundary-boundary pairs are never stored. Indices are global
-// particle indices: particles are reordered only at builds, so they stay valid
-// for the life of the list.
+// Storage is compressed sparse rows (count, prefix sum, fill) in the order the
+// build sweep visits the particles: a particle's whole forward list comes out
+// of the one visit of its home cell, so one sweep builds the list (no counting
+// pass). With reordering, visit order is index order. Each unordered pair is
+// stored once (in the list of the particle whose home cell the half-stencil
+// sweep visits first), as the cell-linked list evaluates each pair once;
+// boundary-boundary pairs are never stored. Indices are global particle
+// indices: particles are reordered only at builds, so they stay valid for the
+// life of the list.
 #include <omp.h>
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "sphnl/neighbours/cell_sweep.hpp"
@@ -38,8 +42,6 @@ class VerletList {
 
   /// Stored pairs (each unordered pair once).
   std::uint64_t pairs() const { return offsets_.empty() ? 0 : offsets_.back(); }
-  std::uint32_t count(std::uint32_t i) const { return offsets_[i + 1] - offsets_[i]; }
-  const std::uint32_t* candidates(std::uint32_t i) const { return neighbours_.data() + offsets_[i]; }
   /// Bytes of the list itself: offsets and neighbour indices (capacity).
   std::size_t list_bytes() const;
   /// Everything this pair source allocated: the list, build sweep buffers,
@@ -50,15 +52,30 @@ class VerletList {
   void prepare_loop(ParticleSet& ps, unsigned outputs, int threads);
   void reduce(ParticleSet& ps, unsigned outputs, int threads);
 
-  std::vector<std::uint32_t> offsets_;     // size N + 1: list of i is neighbours_[offsets_[i], offsets_[i+1])
-  std::vector<std::uint32_t> neighbours_;  // candidate indices
-  std::uint32_t max_count_ = 0;            // longest list, sizes the survivor buffers
+  /// A growable array of indices that is never zero-filled: the build writes
+  /// up to a whole candidate range per particle and keeps only the survivors.
+  struct IndexBuffer {
+    std::unique_ptr<std::uint32_t[]> data;
+    std::size_t size = 0, capacity = 0;
+    std::uint32_t* room(std::size_t more);  // pointer to `more` writable entries past size
+  };
+
+  std::vector<std::uint32_t> offsets_;  // size N + 1: row r is neighbours_[offsets_[r], offsets_[r+1])
+  std::vector<std::uint32_t> visit_;    // size N: particle whose list is row r
+  IndexBuffer neighbours_;              // candidate indices, rows in visit order
+  std::uint32_t max_count_ = 0;         // longest list, sizes the survivor buffers
   CellSweep sweep_;
+  struct Chunk {                        // what one thread's share of the build sweep produced
+    IndexBuffer neighbours;
+    std::vector<std::uint32_t> rows, counts;
+  };
+  std::vector<Chunk> chunks_;
+  std::vector<std::uint8_t> visited_;
   struct Scratch {
     std::vector<std::uint32_t> survivors;
     std::vector<double> acc[13];  // private accumulators of threads > 0 (order of CellSweep::Scratch::acc)
     ParticleView view;
-    std::uint32_t begin = 0, end = 0;  // particle range of this thread
+    std::uint32_t begin = 0, end = 0;  // rows of this thread
   };
   std::vector<Scratch> scratch_;
   std::vector<PairCounts> counts_;
@@ -77,11 +94,12 @@ PairCounts VerletList::for_each_pair(ParticleSet& ps, std::vector<Op>& ops, doub
     std::uint32_t* survivors = s.survivors.data();
     PairCounts c;
     const std::uint32_t* off = offsets_.data();
-    const std::uint32_t* nb = neighbours_.data();
-    for (std::uint32_t i = s.begin; i < s.end; ++i) {
-      const int n = static_cast<int>(off[i + 1] - off[i]);
+    const std::uint32_t* nb = neighbours_.data.get();
+    for (std::uint32_t r = s.begin; r < s.end; ++r) {
+      const int n = static_cast<int>(off[r + 1] - off[r]);
       if (n == 0) continue;
-      const int m = filter_list(s.view, i, nb + off[i], n, support2, survivors);
+      const std::uint32_t i = visit_[r];
+      const int m = filter_list(s.view, i, nb + off[r], n, support2, survivors);
       if (m > 0) ops[t].interact(s.view, i, survivors, m);
       c.candidates += static_cast<std::uint64_t>(n);
       c.interactions += static_cast<std::uint64_t>(m);
