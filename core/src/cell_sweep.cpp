@@ -4,24 +4,10 @@
 
 namespace sphnl {
 
-namespace {
-// Accumulator arrays of a ParticleSet in the order of Scratch::acc.
-std::array<std::vector<double>*, 13> accumulators(ParticleSet& ps) {
-  return {&ps.ax, &ps.ay, &ps.az, &ps.drho, &ps.ux, &ps.uy, &ps.uz,
-          &ps.kgc_m[0], &ps.kgc_m[1], &ps.kgc_m[2], &ps.kgc_m[3], &ps.kgc_m[4], &ps.kgc_m[5]};
-}
-std::pair<int, int> slots(unsigned outputs) {
-  const int first = (outputs & fields::force_out) ? 0 : 7;
-  const int last = (outputs & fields::kgc_m_out) ? 13 : 7;
-  return {first, last};
-}
-}  // namespace
-
 void CellSweep::prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads) {
   if (static_cast<int>(scratch_.size()) < threads) scratch_.resize(threads);
   const std::size_t capacity = 14 * static_cast<std::size_t>(gridder.max_cell_count()) + kFilterSlack;
   const unsigned outputs = mask & (fields::force_out | fields::kgc_m_out);
-  const auto [first, last] = slots(outputs);
   for (int t = 0; t < threads; ++t) {
     Scratch& s = scratch_[t];
     if (s.cell_index.size() < capacity) {
@@ -30,35 +16,45 @@ void CellSweep::prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, 
       s.buffer.reserve(capacity);
     }
     s.target = ParticleView::of(ps);
-    if (t == 0 || !outputs) continue;
-    // Threads other than 0 accumulate privately; zeroed here, summed in reduce().
-    double* __restrict* dst[13] = {&s.target.ax, &s.target.ay, &s.target.az, &s.target.drho, &s.target.ux, &s.target.uy,
-                        &s.target.uz, &s.target.m_kgc[0], &s.target.m_kgc[1], &s.target.m_kgc[2],
-                        &s.target.m_kgc[3], &s.target.m_kgc[4], &s.target.m_kgc[5]};
-    for (int a = first; a < last; ++a) {
-      s.acc[a].assign(ps.size(), 0.0);
-      *dst[a] = s.acc[a].data();
-    }
+    if (t > 0 && outputs) s.private_acc.attach(s.target, ps.size(), outputs);
+  }
+}
+
+void CellSweep::split_keys(const CellOrder& order, const Gridder& gridder, const ParticleSet& ps, int threads) {
+  const std::uint32_t num_keys = order.num_keys();
+  thread_begin_.assign(static_cast<std::size_t>(threads) + 1, num_keys);
+  thread_begin_[0] = 0;
+  if (threads == 1) return;
+  // Work of a home cell ~ its fluid particles; boundary particles only meet
+  // fluid ones, so they weigh a quarter. Weights are counted once per sweep.
+  std::uint32_t* idx = scratch_[0].cell_index.data();
+  double total = 0;
+  weight_.resize(num_keys);
+  for (std::uint32_t key = 0; key < num_keys; ++key) {
+    const std::uint32_t n = gridder.gather_cell(key, idx);
+    double w = 0;
+    for (std::uint32_t k = 0; k < n; ++k) w += ps.type[idx[k]] == ParticleType::fluid ? 1.0 : 0.25;
+    weight_[key] = w;
+    total += w;
+  }
+  double running = 0;
+  int t = 1;
+  for (std::uint32_t key = 0; key < num_keys && t < threads; ++key) {
+    running += weight_[key];
+    while (t < threads && running >= total * t / threads) thread_begin_[t++] = key + 1;
   }
 }
 
 void CellSweep::reduce(ParticleSet& ps, unsigned outputs, int threads) {
-  const auto [first, last] = slots(outputs);
-  auto acc = accumulators(ps);
-  for (int t = 1; t < threads; ++t)
-    for (int a = first; a < last; ++a) {
-      double* __restrict dst = acc[a]->data();
-      const double* __restrict src = scratch_[t].acc[a].data();
-      const std::size_t n = ps.size();
-      for (std::size_t i = 0; i < n; ++i) dst[i] += src[i];
-    }
+  for (int t = 1; t < threads; ++t) scratch_[t].private_acc.add_into(ps, outputs);
 }
 
 std::size_t CellSweep::bytes() const {
   std::size_t b = 0;
   for (const auto& s : scratch_) {
-    b += s.buffer.bytes() + (s.cell_index.capacity() + s.survivors.capacity()) * sizeof(std::uint32_t);
-    for (const auto& a : s.acc) b += a.capacity() * sizeof(double);
+    b += s.buffer.bytes() + (s.cell_index.capacity() + s.survivors.capacity()) * sizeof(std::uint32_t) +
+         s.private_acc.bytes();
+  b += thread_begin_.capacity() * sizeof(std::uint32_t) + weight_.capacity() * sizeof(double);
   }
   return b;
 }

@@ -276,8 +276,7 @@ void NeighbourSearch::search_sorted(double radius2, NeighbourLists& out) {
     const std::uint32_t b = start[key], e = start[key + 1];
     if (b == e) continue;
     const std::uint64_t c = coords[key];
-    const int cx = static_cast<int>(c & 0x1FFFFF), cy = static_cast<int>((c >> 21) & 0x1FFFFF),
-              cz = static_cast<int>(c >> 42);
+    const auto [cx, cy, cz] = CellOrder::unpack_coords(c);
     // The 27 cells as runs of consecutive sorted points; cells adjacent in key
     // order merge (the 3 cells along x of sort_x are one run).
     int nr = 0;
@@ -331,8 +330,7 @@ void NeighbourSearch::search_gathered(std::span<const double> xin, std::span<con
     if (c == CellOrder::kNoCellCoords) continue;
     const std::uint32_t n_home = gridder.gather_cell(key, idx);
     if (n_home == 0) continue;
-    const int cx = static_cast<int>(c & 0x1FFFFF), cy = static_cast<int>((c >> 21) & 0x1FFFFF),
-              cz = static_cast<int>(c >> 42);
+    const auto [cx, cy, cz] = CellOrder::unpack_coords(c);
     // The home cell first, then its 26 neighbours, gathered into contiguous
     // buffers: particle data stay in input order, so this is where scattered
     // memory is read (what reordering removes).

@@ -28,8 +28,7 @@ void CellOrder::setup(const CellGrid& grid) {
   for (int cz = 0; cz < grid.n[2]; ++cz)
     for (int cy = 0; cy < grid.n[1]; ++cy)
       for (int cx = 0; cx < grid.n[0]; ++cx)
-        key_coords_[key(cx, cy, cz)] = static_cast<std::uint64_t>(cx) | (static_cast<std::uint64_t>(cy) << 21) |
-                                       (static_cast<std::uint64_t>(cz) << 42);
+        key_coords_[key(cx, cy, cz)] = pack_coords(cx, cy, cz);
 }
 
 std::unique_ptr<CellOrder> make_cell_order(CellOrderKind kind) {

@@ -8,19 +8,6 @@
 
 namespace sphnl {
 
-namespace {
-
-std::array<std::vector<double>*, 13> accumulators(ParticleSet& ps) {
-  return {&ps.ax, &ps.ay, &ps.az, &ps.drho, &ps.ux, &ps.uy, &ps.uz,
-          &ps.kgc_m[0], &ps.kgc_m[1], &ps.kgc_m[2], &ps.kgc_m[3], &ps.kgc_m[4], &ps.kgc_m[5]};
-}
-
-std::pair<int, int> accumulator_slots(unsigned outputs) {
-  return {(outputs & fields::force_out) ? 0 : 7, (outputs & fields::kgc_m_out) ? 13 : 7};
-}
-
-}  // namespace
-
 std::uint32_t* VerletList::IndexBuffer::room(std::size_t more) {
   if (size + more > capacity) {
     const std::size_t grown = std::max(size + more, capacity + capacity / 2 + 1024);
@@ -99,7 +86,6 @@ void VerletList::prepare_loop(ParticleSet& ps, unsigned outputs, int threads) {
   if (static_cast<int>(scratch_.size()) < threads) scratch_.resize(threads);
   const std::uint32_t n = offsets_.empty() ? 0 : static_cast<std::uint32_t>(offsets_.size() - 1);
   if (n != ps.size()) throw std::logic_error("VerletList used before build() for the current particle set");
-  const auto [first, last] = accumulator_slots(outputs);
   const std::uint64_t total = pairs();
   for (int t = 0; t < threads; ++t) {
     Scratch& s = scratch_[t];
@@ -114,27 +100,12 @@ void VerletList::prepare_loop(ParticleSet& ps, unsigned outputs, int threads) {
     s.begin = split(t);
     s.end = split(t + 1);
     s.view = ParticleView::of(ps);
-    if (t == 0 || !outputs) continue;
-    double* __restrict* dst[13] = {&s.view.ax, &s.view.ay, &s.view.az, &s.view.drho, &s.view.ux, &s.view.uy,
-                                   &s.view.uz, &s.view.m_kgc[0], &s.view.m_kgc[1], &s.view.m_kgc[2],
-                                   &s.view.m_kgc[3], &s.view.m_kgc[4], &s.view.m_kgc[5]};
-    for (int a = first; a < last; ++a) {
-      s.acc[a].assign(ps.size(), 0.0);
-      *dst[a] = s.acc[a].data();
-    }
+    if (t > 0 && outputs) s.private_acc.attach(s.view, ps.size(), outputs);
   }
 }
 
 void VerletList::reduce(ParticleSet& ps, unsigned outputs, int threads) {
-  const auto [first, last] = accumulator_slots(outputs);
-  auto acc = accumulators(ps);
-  const std::size_t n = ps.size();
-  for (int t = 1; t < threads; ++t)
-    for (int a = first; a < last; ++a) {
-      double* __restrict dst = acc[a]->data();
-      const double* __restrict src = scratch_[t].acc[a].data();
-      for (std::size_t i = 0; i < n; ++i) dst[i] += src[i];
-    }
+  for (int t = 1; t < threads; ++t) scratch_[t].private_acc.add_into(ps, outputs);
 }
 
 std::size_t VerletList::list_bytes() const {
@@ -146,8 +117,7 @@ std::size_t VerletList::bytes() const {
   for (const auto& c : chunks_)
     b += (c.neighbours.capacity + c.rows.capacity() + c.counts.capacity()) * sizeof(std::uint32_t);
   for (const auto& s : scratch_) {
-    b += s.survivors.capacity() * sizeof(std::uint32_t);
-    for (const auto& a : s.acc) b += a.capacity() * sizeof(double);
+    b += s.survivors.capacity() * sizeof(std::uint32_t) + s.private_acc.bytes();
   }
   return b;
 }

@@ -3,8 +3,11 @@
 // 13 forward neighbour cells (a half stencil: every pair of cells once), gathers
 // their particles into a CellBuffer and hands it to a visitor. The cell-linked
 // list evaluates pairs from it; Verlet lists build their lists from it.
-// Threads take contiguous ranges of home cells; each accumulates into private
-// arrays that are summed afterwards in a fixed order (deterministic results).
+// Threads take contiguous ranges of home cells holding equal shares of the
+// fluid (split_keys: a static split of the key range would hand one thread the
+// water and the other the empty upper half of the tank); each accumulates into
+// private arrays that are summed afterwards in a fixed order, so results are
+// deterministic for a fixed thread count.
 #include <omp.h>
 
 #include <array>
@@ -15,6 +18,7 @@
 #include "sphnl/gridders/gridder.hpp"
 #include "sphnl/neighbours/cell_buffer.hpp"
 #include "sphnl/neighbours/pair_filter.hpp"
+#include "sphnl/neighbours/thread_accumulators.hpp"
 #include "sphnl/orderings/cell_order.hpp"
 #include "sphnl/particles.hpp"
 
@@ -34,7 +38,7 @@ class CellSweep {
     CellBuffer buffer;
     std::vector<std::uint32_t> cell_index;
     std::vector<std::uint32_t> survivors;
-    std::vector<double> acc[13];  // ax ay az drho ux uy uz m0..m5 for threads > 0
+    ThreadAccumulators private_acc;  // threads > 0
     ParticleView target;
   };
 
@@ -44,7 +48,7 @@ class CellSweep {
   void run(const CellGrid& grid, const CellOrder& order, const Gridder& gridder, ParticleSet& ps, unsigned mask,
            int threads, Visit&& visit) {
     prepare(gridder, ps, mask, threads);
-    const std::uint32_t num_keys = order.num_keys();
+    split_keys(order, gridder, ps, threads);
     const std::uint64_t* coords = order.key_coords().data();
     const unsigned outputs = mask & (fields::force_out | fields::kgc_m_out);
 #pragma omp parallel num_threads(threads)
@@ -52,14 +56,12 @@ class CellSweep {
       const int t = omp_get_thread_num();
       Scratch& s = scratch_[t];
       std::uint32_t* idx = s.cell_index.data();
-#pragma omp for schedule(static)
-      for (std::uint32_t key = 0; key < num_keys; ++key) {
+      for (std::uint32_t key = thread_begin_[t]; key < thread_begin_[t + 1]; ++key) {
         const std::uint64_t c = coords[key];
         if (c == CellOrder::kNoCellCoords) continue;
         const std::uint32_t n_home = gridder.gather_cell(key, idx);
         if (n_home == 0) continue;
-        const int cx = static_cast<int>(c & 0x1FFFFF), cy = static_cast<int>((c >> 21) & 0x1FFFFF),
-                  cz = static_cast<int>(c >> 42);
+        const auto [cx, cy, cz] = CellOrder::unpack_coords(c);
         std::uint32_t total = n_home;
         for (const auto& o : kHalfStencil) {
           const int nx = cx + o[0], ny = cy + o[1], nz = cz + o[2];
@@ -78,6 +80,10 @@ class CellSweep {
 
  private:
   void prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads);
+  /// Fills thread_begin_: thread t sweeps keys [thread_begin_[t], thread_begin_[t+1]).
+  void split_keys(const CellOrder& order, const Gridder& gridder, const ParticleSet& ps, int threads);
+  std::vector<std::uint32_t> thread_begin_;
+  std::vector<double> weight_;
   void reduce(ParticleSet& ps, unsigned outputs, int threads);
   std::vector<Scratch> scratch_;
 };

@@ -23,6 +23,7 @@
 #include "sphnl/neighbours/pair_counts.hpp"
 #include "sphnl/neighbours/pair_filter.hpp"
 #include "sphnl/neighbours/particle_grid.hpp"
+#include "sphnl/neighbours/thread_accumulators.hpp"
 #include "sphnl/particle_view.hpp"
 
 namespace sphnl {
@@ -73,7 +74,7 @@ class VerletList {
   std::vector<std::uint8_t> visited_;
   struct Scratch {
     std::vector<std::uint32_t> survivors;
-    std::vector<double> acc[13];  // private accumulators of threads > 0 (order of CellSweep::Scratch::acc)
+    ThreadAccumulators private_acc;  // threads > 0
     ParticleView view;
     std::uint32_t begin = 0, end = 0;  // rows of this thread
   };

@@ -34,6 +34,13 @@ class CellOrder {
   /// key order without each ordering having to invert its key.
   std::span<const std::uint64_t> key_coords() const { return key_coords_; }
   static constexpr std::uint64_t kNoCellCoords = ~std::uint64_t{0};
+  static std::uint64_t pack_coords(int cx, int cy, int cz) {
+    return static_cast<std::uint64_t>(cx) | (static_cast<std::uint64_t>(cy) << 21) | (static_cast<std::uint64_t>(cz) << 42);
+  }
+  struct Coords { int x, y, z; };
+  static Coords unpack_coords(std::uint64_t c) {
+    return {static_cast<int>(c & 0x1FFFFF), static_cast<int>((c >> 21) & 0x1FFFFF), static_cast<int>(c >> 42)};
+  }
   /// Bytes of this ordering's own tables (the padded key space included).
   std::size_t bytes() const { return key_coords_.capacity() * sizeof(std::uint64_t) + table_bytes(); }
 
