@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "bench_common.hpp"
+#include "sphnl_revision.hpp"
 
 using nlohmann::json;
 namespace sb = sphnl::bench;

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include <nlohmann/json.hpp>
+#include "sphnl_revision.hpp"
 
 namespace fs = std::filesystem;
 using nlohmann::json;

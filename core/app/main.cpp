@@ -8,6 +8,7 @@
 #include "sphnl/run.hpp"
 #if __has_include("sphnl/neighbours_tool.hpp")
 #include "sphnl/neighbours_tool.hpp"
+#include "sphnl_revision.hpp"
 #define SPHNL_HAVE_NEIGHBOURS_TOOL 1
 #endif
 

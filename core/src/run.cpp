@@ -17,6 +17,7 @@
 
 #include "sphnl/output.hpp"
 #include "sphnl/timer.hpp"
+#include "sphnl_revision.hpp"
 
 namespace sphnl {
 
