@@ -97,7 +97,9 @@ TEST(Validation, HydrostaticTank) {
   g.tank = Box{{0, 0, 0}, {lx, ly, depth + 2 * dx}};
   g.water = {Box{{0, 0, 0}, {lx, ly, depth}}};
   g.still_water_depth = depth;
-  Simulation sim = make_sim(g, dx, 2);
+  // One thread: with two OpenMP threads on two cores shared with other jobs the
+  // per-step barriers made this run ten times slower (20 min instead of 1.5).
+  Simulation sim = make_sim(g, dx, 1);
   const ParticleSet& ps = sim.particles();
   const CubicSpline& kernel = sim.physics().kernel;
   const double h = sim.physics().h(), rho0 = sim.physics().rho0, gravity = sim.physics().gravity;
@@ -183,10 +185,34 @@ TEST(Validation, HydrostaticTank) {
 // narrow slab (walls on both sides), front Z = x/a against Martin & Moyce
 // (1952) within 15 % for 0.5 <= T = t sqrt(2g/a) <= 3.
 //
-// DISABLED: not yet run to completion (about 62 000 particles, most of them
-// the two side walls, and about 2700 steps: several minutes on 2 cores).
+// DISABLED: it does not meet the tolerance at any slab width that runs in
+// minutes, and the reason is the side walls, not the solver. Measured (front =
+// foremost fluid particle; experiment a = 2.25 in unless noted):
+// - width = dx (one particle sheet between the walls, a/40, 63 804 particles,
+//   3 200 fluid): the front does not move at all, Z = 0.991..0.994 up to
+//   T = 2.25. Each fluid particle sits 0.87 dx from four wall particles on
+//   each side, in the egg-crate potential of the wall lattice (pressure and
+//   tensile terms): it is locked.
+// - width = 4 dx (a/40, 85 077 particles, 22 400 fluid; ~10 min on 2 busy
+//   cores): T 1.0: Z 1.437 vs 1.329 (+8 %); 1.25: 1.605 vs 1.50 (+7 %);
+//   1.75: 1.974 vs 2.03 (-3 %); 2.0: 2.163 vs 2.292 (-6 %); 2.25: 2.352 vs
+//   2.615 (-10 %); 2.5: 2.538 vs 2.935 (-14 %); later worse (front speed
+//   dZ/dT = 0.75 against the experiment's 1.5).
+// - width = 8 dx at a/20 (coarser than PHYSICS.md allows; 30 371 particles,
+//   12 000 fluid): T 0.83: +12 %; 1.21: +16..18 % (fails); 1.6: +8 %; 2.0:
+//   +11 %; 2.55: +6 %; 2.95: +1 %.
+// Diagnosis (the share of each part not separated by a run): the side walls
+// hold the fluid back. They act through the artificial viscosity (alpha = 0.1,
+// v_wall = 0; PHYSICS.md: same alpha for fluid-boundary), an effective
+// kinematic viscosity ~ alpha h c0 / 10 = 2e-4 m^2/s, 200 times water's, and
+// through the corrugated pressure of the wall lattice (which locks the 1 dx
+// sheet). In a slab a few h wide that drag dominates the late front (the 4 dx
+// slab decelerates; the wider 8 dx slab does not); Martin & Moyce's channel
+// was wide against any such layer. A 2-D front needs a slab many h wide (>= 0.4 a = 16 dx at
+// a/40: ~150 000 particles, far beyond a test's minutes) or periodic side
+// boundaries (not implemented). Kept asserting the stated tolerance.
 TEST(Validation, DISABLED_MartinMoyceDamBreakFront) {
-  const double a = 2.25 * 0.0254, dx = a / 40, width = dx;  // narrow slab: one BCC layer between walls
+  const double a = 2.25 * 0.0254, dx = a / 40, width = 4 * dx;  // narrow slab: see above for widths dx and 8 dx
   CaseGeometry g;
   g.tank = Box{{0, 0, 0}, {4.5 * a, width, 2 * a + 2 * dx}};
   g.water = {Box{{0, 0, 0}, {a, width, 2 * a}}};
