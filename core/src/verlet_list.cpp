@@ -109,7 +109,10 @@ void VerletList::reduce(ParticleSet& ps, unsigned outputs, int threads) {
 }
 
 std::size_t VerletList::list_bytes() const {
-  return (offsets_.capacity() + visit_.capacity() + neighbours_.capacity) * sizeof(std::uint32_t);
+  // Entries in use, not capacity: the buffer grows in 1.5x steps and keeps its
+  // largest size, so its capacity tells the history of the run (and hides
+  // VL_X's smaller skin) rather than what the list needs (Figs. 13, 15).
+  return (offsets_.size() + visit_.size() + neighbours_.size) * sizeof(std::uint32_t);
 }
 
 std::size_t VerletList::bytes() const {

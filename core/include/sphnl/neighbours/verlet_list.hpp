@@ -43,7 +43,8 @@ class VerletList {
 
   /// Stored pairs (each unordered pair once).
   std::uint64_t pairs() const { return offsets_.empty() ? 0 : offsets_.back(); }
-  /// Bytes of the list itself: offsets and neighbour indices (capacity).
+  /// Bytes of the list itself: offsets, visit order and neighbour indices in
+  /// use (the spare capacity of the growable buffer is in bytes()).
   std::size_t list_bytes() const;
   /// Everything this pair source allocated: the list, build sweep buffers,
   /// loop scratch and private accumulators of threads > 0.
