@@ -41,9 +41,7 @@ void Simulation::init() {
   if (config_.list_steps < 1)
     throw ConfigError("list_steps must be >= 1 (n_s, the steps a Verlet list is meant to live); got " +
                       std::to_string(config_.list_steps));
-  GridderOptions options;
-  options.max_parts_in_cell = config_.max_parts_in_cell;
-  options.dx = case_.dx, options.h = phys_.h(), options.particles_per_dx3 = config_.lattice == Lattice::bcc ? 2.0 : 1.0;
+  const GridderOptions options = gridder_options();
   grid_ = std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, options);
   force_ops_.assign(config_.threads, ForceOp<false>{&phys_, 0});
   force_ops_kgc_.assign(config_.threads, ForceOp<true>{&phys_, 0});
@@ -52,6 +50,15 @@ void Simulation::init() {
   if (config_.verify_lists && config_.list != ListKind::cll)
     verify_grid_ = std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, options);
   update_derived(phys_, ps_, 0, ps_.size());
+}
+
+GridderOptions Simulation::gridder_options() const {
+  GridderOptions options;
+  options.max_parts_in_cell = config_.max_parts_in_cell;
+  options.dx = case_.dx;
+  options.h = phys_.h();
+  options.particles_per_dx3 = config_.lattice == Lattice::bcc ? 2.0 : 1.0;
+  return options;
 }
 
 void Simulation::build_neighbours() {
@@ -129,11 +136,8 @@ void Simulation::build_verlet_list() {
 
 std::uint64_t Simulation::count_list_misses() {
   if (config_.list == ListKind::cll) return 0;
-  if (!verify_grid_) {
-    GridderOptions options;
-    options.max_parts_in_cell = config_.max_parts_in_cell;
-    verify_grid_ = std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, options);
-  }
+  if (!verify_grid_)
+    verify_grid_ = std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, gridder_options());
   verify_grid_->build(ps_, 2.0 * phys_.h(), false);
   const std::uint64_t truth = verify_cll_.for_each_pair(*verify_grid_, ps_, no_ops_, phys_.kernel.support2).interactions;
   // Every listed pair that passes the 2h filter is a true pair and is listed

@@ -100,6 +100,8 @@ class Simulation {
 
  private:
   void init();
+  /// What the gridders need to know of the case (gridder C sizes its rows from it).
+  GridderOptions gridder_options() const;
   void build_verlet_list();
   void compute_forces();
   void update(double dt);
