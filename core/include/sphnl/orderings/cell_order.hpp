@@ -72,4 +72,19 @@ void compute_keys_with(const CellGrid& grid, const ParticleSet& ps, std::span<st
   }
 }
 
+/// Base of every ordering: implements key() and compute_keys() from
+/// Derived::inline_key(cx, cy, cz), so that the per-particle loop inlines the
+/// ordering's own key function (one virtual call per pass, not per particle).
+template <class Derived>
+class CellOrderWithKey : public CellOrder {
+ public:
+  std::uint32_t key(int cx, int cy, int cz) const final { return self().inline_key(cx, cy, cz); }
+  void compute_keys(const CellGrid& grid, const ParticleSet& ps, std::span<std::uint32_t> keys) const final {
+    compute_keys_with(grid, ps, keys, [this](int cx, int cy, int cz) { return self().inline_key(cx, cy, cz); });
+  }
+
+ private:
+  const Derived& self() const { return static_cast<const Derived&>(*this); }
+};
+
 }  // namespace sphnl

@@ -22,13 +22,10 @@ namespace hilbert {
 std::uint64_t index(std::uint32_t x, std::uint32_t y, std::uint32_t z, int bits);
 }  // namespace hilbert
 
-class Hilbert final : public CellOrder {
+class Hilbert final : public CellOrderWithKey<Hilbert> {
+  friend class CellOrderWithKey<Hilbert>;
  public:
   const char* name() const override { return "hilbert"; }
-  std::uint32_t key(int cx, int cy, int cz) const override { return inline_key(cx, cy, cz); }
-  void compute_keys(const CellGrid& grid, const ParticleSet& ps, std::span<std::uint32_t> keys) const override {
-    compute_keys_with(grid, ps, keys, [this](int cx, int cy, int cz) { return inline_key(cx, cy, cz); });
-  }
 
  protected:
   std::uint32_t prepare(const CellGrid& grid) override;

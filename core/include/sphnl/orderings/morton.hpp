@@ -71,13 +71,10 @@ int make_layouts(const int* bits, int dims, AxisLayout* out);
 
 /// Z-order in the XY plane, then z (paper §2.4 "SortXY"): icell = cz * PX * PY + Z(cx, cy),
 /// with PX, PY the padded power-of-two cell counts of x and y.
-class SortXY final : public CellOrder {
+class SortXY final : public CellOrderWithKey<SortXY> {
+  friend class CellOrderWithKey<SortXY>;
  public:
   const char* name() const override { return "sort_xy"; }
-  std::uint32_t key(int cx, int cy, int cz) const override { return inline_key(cx, cy, cz); }
-  void compute_keys(const CellGrid& grid, const ParticleSet& ps, std::span<std::uint32_t> keys) const override {
-    compute_keys_with(grid, ps, keys, [this](int cx, int cy, int cz) { return inline_key(cx, cy, cz); });
-  }
   /// Padded cells per axis (x, y are powers of two; z is not padded).
   const int* padded() const { return padded_; }
 
@@ -95,13 +92,10 @@ class SortXY final : public CellOrder {
 };
 
 /// 3-D Z-order (paper §2.4 "SortXYZ") on the grid padded to powers of two per axis.
-class SortXYZ final : public CellOrder {
+class SortXYZ final : public CellOrderWithKey<SortXYZ> {
+  friend class CellOrderWithKey<SortXYZ>;
  public:
   const char* name() const override { return "sort_xyz"; }
-  std::uint32_t key(int cx, int cy, int cz) const override { return inline_key(cx, cy, cz); }
-  void compute_keys(const CellGrid& grid, const ParticleSet& ps, std::span<std::uint32_t> keys) const override {
-    compute_keys_with(grid, ps, keys, [this](int cx, int cy, int cz) { return inline_key(cx, cy, cz); });
-  }
   const int* padded() const { return padded_; }
 
  protected:

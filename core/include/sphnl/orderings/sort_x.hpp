@@ -5,13 +5,10 @@
 
 namespace sphnl {
 
-class SortX final : public CellOrder {
+class SortX final : public CellOrderWithKey<SortX> {
+  friend class CellOrderWithKey<SortX>;
  public:
   const char* name() const override { return "sort_x"; }
-  std::uint32_t key(int cx, int cy, int cz) const override { return inline_key(cx, cy, cz); }
-  void compute_keys(const CellGrid& grid, const ParticleSet& ps, std::span<std::uint32_t> keys) const override {
-    compute_keys_with(grid, ps, keys, [this](int cx, int cy, int cz) { return inline_key(cx, cy, cz); });
-  }
 
  protected:
   std::uint32_t prepare(const CellGrid& grid) override {
