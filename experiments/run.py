@@ -5,10 +5,13 @@
 
 Writes results/<run-id>/<id>.json (raw Google Benchmark JSON, renamed into
 place only when complete) and results/<run-id>/machine.json. Resumable: an
-experiment whose JSON already lists every sweep point is skipped unless --force.
+experiment whose JSON already lists every sweep point is skipped unless --force;
+one that lacks some N is completed by running only those N and merging.
+--max-n caps every sweep at N <= MAX_N (for a long FULL run done in parts).
 """
 import argparse
 import collections
+import copy
 import datetime
 import json
 import os
@@ -103,14 +106,41 @@ def machine_info(args):
         "os": platform.platform(),
         "python": platform.python_version(),
         "bench": str(args.bench),
+        "max_n": args.max_n,
     }
 
 
+def machine_record(args, path):
+    """machine.json for this invocation; earlier invocations that wrote into the
+    same run folder (a run done in parts) are listed under `earlier`."""
+    info = machine_info(args)
+    try:
+        old = json.loads(path.read_text(encoding="utf-8"))
+        earlier = old.pop("earlier", [])
+        info["earlier"] = earlier + [{k: old.get(k) for k in
+                                      ("date", "git_revision", "git_dirty", "max_n", "bench")}]
+    except (OSError, ValueError, AttributeError):
+        pass
+    return info
+
+
 # ------------------------------------------------------------------- running
-def bench_command(args, exp, out_tmp):
+def restrict_n(exp, size, keep):
+    """`exp` with its sweep's N limited to those for which keep(n) is true
+    (unchanged when the sweep has no N axis)."""
+    sweep = exp["sweep"].get(size, {})
+    if "n" not in sweep:
+        return exp
+    out = copy.deepcopy(exp)
+    out["sweep"][size]["n"] = [n for n in sweep["n"] if keep(n)]
+    out["_restricted"] = True  # its sweep is not the file's: the bench gets a copy
+    return out
+
+
+def bench_command(args, exp, out_tmp, exp_file):
     base = [sys.executable, str(args.bench)] if args.bench.suffix == ".py" else [str(args.bench)]
     return base + [
-        f"--experiment={REPO / 'experiments' / (exp['id'] + '.json')}",
+        f"--experiment={exp_file}",
         f"--size={args.size}",
         f"--cache-dir={args.cache_dir}",
         f"--benchmark_out={out_tmp}",
@@ -120,16 +150,46 @@ def bench_command(args, exp, out_tmp):
     ]
 
 
+def resume_plan(args, exp, out_path):
+    """(experiment to run, benchmark entries to keep): when out_path holds some
+    but not all N of the sweep, only the missing N are run and the rest kept."""
+    if args.force or not out_path.exists() or "n" not in exp["sweep"][args.size]:
+        return exp, []
+    try:
+        doc = R.read_benchmark_json(out_path)
+        missing = R.missing_points(out_path, exp, args.size)
+    except R.ResultsError:
+        return exp, []
+    rerun = {R.parse_run_name(name)[1]["n"] for name in missing}
+
+    def n_of(entry):
+        family, params = R.parse_run_name(entry.get("run_name", entry.get("name", "")))
+        return params.get("n") if family == exp["benchmark"] else None
+    keep = [b for b in doc["benchmarks"] if n_of(b) is not None and n_of(b) not in rerun]
+    if not keep:
+        return exp, []
+    print(f"  {exp['id']}: keeping {len(keep)} entries of {out_path.name}; running only "
+          f"N = {', '.join(str(n) for n in sorted(rerun))}", flush=True)
+    return restrict_n(exp, args.size, lambda n: n in rerun), keep
+
+
 def run_experiment(args, exp, out_path, label):
     """Run one experiment; the JSON appears at out_path only if complete."""
     size, family = args.size, exp["benchmark"]
+    full_exp = exp
+    exp, keep = resume_plan(args, exp, out_path)
     configs = len(R.sweep_points(exp, size))
     reps = exp["repetitions"][size]
     print(f"{label} {exp['id']}: {configs} configurations x {reps} repetitions, "
           f"{exp['window_steps'][size]} steps each (model estimate {hms(estimate_seconds(exp, size))})",
           flush=True)
     tmp = out_path.with_name(f".{out_path.name}.partial")
-    cmd = bench_command(args, exp, tmp)
+    exp_file = REPO / "experiments" / (exp["id"] + ".json")
+    if exp.get("_restricted"):  # the bench reads its sweep from a file: give it the restricted one
+        exp_file = out_path.with_name(f".{exp['id']}.experiment.json")
+        R.write_atomic(exp_file, json.dumps({k: v for k, v in exp.items() if k != "_restricted"},
+                                            indent=1) + "\n")
+    cmd = bench_command(args, exp, tmp, exp_file)
     if args.verbose:
         print("  $ " + " ".join(cmd), flush=True)
     start, lines = time.monotonic(), 0
@@ -165,7 +225,13 @@ def run_experiment(args, exp, out_path, label):
             raise RunError(f"{exp['id']}: {args.bench} exited with status {rc}; nothing saved.\n"
                            "Last lines of its stderr:\n  " + "\n  ".join(tail or ["(empty)"]))
         try:
-            missing = R.missing_points(tmp, exp, size)
+            if keep:  # merge with the entries kept from the earlier run
+                doc = R.read_benchmark_json(tmp)
+                doc["benchmarks"] = keep + doc["benchmarks"]
+                doc["context"]["sphnl_merged"] = (f"{len(keep)} entries kept from an earlier run "
+                                                  "of this experiment (other N)")
+                R.write_atomic(tmp, json.dumps(doc, indent=2) + "\n")
+            missing = R.missing_points(tmp, full_exp, size)
         except R.ResultsError as e:
             raise RunError(f"{exp['id']}: the bench exited 0 but its output is unusable: {e}") from None
         if missing:
@@ -178,6 +244,8 @@ def run_experiment(args, exp, out_path, label):
             proc.kill()
             proc.wait()
         tmp.unlink(missing_ok=True)
+        if exp.get("_restricted"):
+            exp_file.unlink(missing_ok=True)
     print(f"  {exp['id']}: done in {hms(time.monotonic() - start)} -> {out_path}", flush=True)
 
 
@@ -229,11 +297,16 @@ def parse_args(argv):
     p.add_argument("--force", action="store_true", help="rerun experiments already complete")
     p.add_argument("--cache-dir", type=pathlib.Path,
                    help="snapshot cache passed to the bench (default: RESULTS_DIR/cache)")
+    p.add_argument("--max-n", type=int, metavar="N",
+                   help="leave out sweep points with more than N particles (a long FULL run in "
+                        "parts: rerun later without it and only the missing N run)")
     p.add_argument("--dry-run", action="store_true",
                    help="print the plan and the model time estimate, run nothing")
     p.add_argument("-v", "--verbose", action="store_true",
                    help="echo the bench command, its stdout and stderr")
     args = p.parse_args(argv)
+    if args.max_n is not None and args.max_n < 1:
+        p.error(f"--max-n must be a positive particle count, not {args.max_n}")
     args.run_id = args.run_id or args.size
     args.cache_dir = (args.cache_dir or args.results_dir / "cache").resolve()
     args.bench = args.bench.resolve() if args.bench.exists() else args.bench
@@ -245,6 +318,12 @@ def main(argv=None):
     try:
         experiments = R.load_experiments(REPO / "experiments")
         chosen = select(experiments, args.only)
+        if args.max_n is not None:
+            capped = [restrict_n(e, args.size, lambda n: n <= args.max_n) for e in chosen]
+            for e in capped:
+                if "n" in e["sweep"][args.size] and not e["sweep"][args.size]["n"]:
+                    print(f"{e['id']}: no sweep point with N <= {args.max_n}, left out")
+            chosen = [e for e in capped if e["sweep"][args.size].get("n", True)]
         out_dir = args.results_dir / args.run_id
         plan = []
         for exp in chosen:
@@ -263,7 +342,8 @@ def main(argv=None):
             raise RunError(f"benchmark binary {args.bench} not found or not executable; "
                            "build it first with `make build`", 2)
         out_dir.mkdir(parents=True, exist_ok=True)
-        R.write_atomic(out_dir / "machine.json", json.dumps(machine_info(args), indent=2) + "\n")
+        R.write_atomic(out_dir / "machine.json",
+                       json.dumps(machine_record(args, out_dir / "machine.json"), indent=2) + "\n")
         start, modelled = time.monotonic(), 0.0
         for k, (exp, out) in enumerate(todo, 1):
             if modelled:  # scale the model by how fast this machine has been so far
