@@ -2,7 +2,7 @@
 # missing Debian packages (as root) or prints the exact apt-get command.
 #
 #   make test                      build and run every test (what CI runs)
-#   make reproduce [FULL=1]        benchmarks -> results/<run-id>/ -> figures + REPRODUCTION.md
+#   make reproduce [FULL=1] [MAX_N=n]  benchmarks -> results/<run-id>/ -> figures + REPRODUCTION.md
 #   make figures RESULTS=dir       redraw figures and report from stored JSON only
 #   make bench ARGS="..."          run the benchmark binary with ARGS passed through
 #   make compare [BASE=ref] [THRESHOLD=2]   compare performance against another git ref
@@ -21,6 +21,8 @@ RESULTS ?= results/reference
 BASE ?=
 THRESHOLD ?= 2
 REPS ?= 5
+# MAX_N=n leaves out sweep points above n particles (a FULL run in parts).
+MAX_N ?=
 COMPARE_OUT ?= .compare/out
 export MPLBACKEND := Agg
 
@@ -46,7 +48,7 @@ test: build
 	SPHNL_BUILD_DIR=$(abspath $(BUILD)) $(PYTHON) -m unittest discover -s tests/python -v
 
 reproduce: build
-	$(PYTHON) experiments/run.py --size $(SIZE) --run-id $(RUN_ID) --bench $(BUILD)/benchmarks/sphnl_bench
+	$(PYTHON) experiments/run.py --size $(SIZE) --run-id $(RUN_ID) --bench $(BUILD)/benchmarks/sphnl_bench $(if $(MAX_N),--max-n $(MAX_N))
 	$(PYTHON) plots/report.py results/$(RUN_ID)
 	@echo "sphnl: report: results/$(RUN_ID)/REPRODUCTION.md"
 

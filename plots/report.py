@@ -59,6 +59,12 @@ def machine_section(run_dir, df):
             ("Git revision", f"{m.get('git_revision', '?')}{dirty}"),
             ("Date (UTC)", m.get("date", "?")), ("Size", m.get("size", "?")),
             ("OS", m.get("os", "?"))]
+    if m.get("max_n"):
+        rows.append(("N cap", f"sweep points above N = {m['max_n']:,} left out (--max-n)"))
+    for part in m.get("earlier") or []:  # a run made in parts: each earlier invocation
+        cap = f", N ≤ {part['max_n']:,}" if part.get("max_n") else ""
+        rows.append(("Earlier part", f"{part.get('date', '?')}, revision "
+                                     f"{(part.get('git_revision') or '?')[:12]}{cap}"))
     return ["| | |", "|---|---|"] + [f"| {k} | {v} |" for k, v in rows], m
 
 

@@ -161,6 +161,35 @@ class TestRunAndLoad(TempDirCase):
         self.assertEqual(R.missing_points(out_dir / "fig06.json", R.load_experiments(
             REPO / "experiments")["fig06"], "tiny"), [])
 
+    def test_max_n_then_resume_runs_only_missing_n(self):
+        out_dir, log = fake_run(self.tmp, "default", "--only", "fig06", "--max-n", "16000")
+        self.assertIn("fig06: 8 configurations", log)  # 4 gridders x N in {8000, 16000}
+        path = out_dir / "fig06.json"
+        first = json.loads(path.read_text(encoding="utf-8"))["benchmarks"]
+        self.assertEqual({R.parse_run_name(b["run_name"])[1]["n"] for b in first}, {8000, 16000})
+        self.assertEqual(json.loads((out_dir / "machine.json").read_text())["max_n"], 16000)
+        _, log2 = fake_run(self.tmp, "default", "--only", "fig06", "--max-n", "16000")
+        self.assertIn("fig06: complete, skipped", log2)
+        # Without the cap the experiment is incomplete; only the missing N run
+        # (another seed, so a rerun of a kept N would show) and are merged in.
+        _, log3 = fake_run(self.tmp, "default", "--only", "fig06", env={"FAKE_BENCH_SEED": "9"})
+        self.assertIn("incomplete (8 sweep points missing)", log3)
+        self.assertIn("running only N = 31239, 60000", log3)
+        merged = json.loads(path.read_text(encoding="utf-8"))["benchmarks"]
+        kept = [b for b in merged if R.parse_run_name(b["run_name"])[1]["n"] <= 16000]
+        self.assertEqual(kept, first)
+        self.assertEqual(R.missing_points(path, R.load_experiments(REPO / "experiments")["fig06"],
+                                          "default"), [])
+        self.assertEqual(sorted(p.name for p in out_dir.iterdir()), ["fig06.json", "machine.json"])
+        machine = json.loads((out_dir / "machine.json").read_text(encoding="utf-8"))
+        self.assertIsNone(machine["max_n"])
+        self.assertEqual([e["max_n"] for e in machine["earlier"]], [16000])  # a skip writes nothing
+
+    def test_max_n_rejects_nonsense(self):
+        code, _, err = run_cli("--size", "tiny", "--bench", FAKE, "--max-n", "0")
+        self.assertEqual(code, 2)
+        self.assertIn("--max-n must be a positive", err)
+
     def test_uses_only_id_runs_its_source(self):
         _, log = fake_run(self.tmp, "tiny", "--only", "fig07")
         self.assertIn("fig07 is drawn from fig06", log)
