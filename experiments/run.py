@@ -102,7 +102,8 @@ def machine_info(args):
         "memory_bytes": int(mem_kib.group(1)) * 1024 if mem_kib else None,
         "compiler": (_cmd("c++", "--version").splitlines() or ["unknown"])[0],
         "git_revision": rev or "unknown",
-        "git_dirty": bool(_cmd("git", "status", "--porcelain")) if rev else None,
+        # Results written by earlier parts of this run do not make the code dirty.
+        "git_dirty": bool(_cmd("git", "status", "--porcelain", "--", ".", ":!results")) if rev else None,
         "os": platform.platform(),
         "python": platform.python_version(),
         "bench": str(args.bench),
