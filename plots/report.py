@@ -11,6 +11,7 @@ A missing experiment file skips its figures with a line in the report.
 import argparse
 import collections
 import json
+import os
 import pathlib
 import sys
 
@@ -150,6 +151,9 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("results_dir", type=pathlib.Path, help="results/<run-id>")
     p.add_argument("--experiments-dir", type=pathlib.Path, default=HERE.parent / "experiments")
+    p.add_argument("--publish", type=pathlib.Path, metavar="FILE",
+                   help="also write the report to FILE (e.g. results/REPRODUCTION.md, the "
+                        "reference copy), its figure links rewritten to point into the run folder")
     args = p.parse_args(argv)
     try:
         text, counts, drawn, skipped = build(args.results_dir, args.experiments_dir)
@@ -157,6 +161,11 @@ def main(argv=None):
         print(f"error: {e}", file=sys.stderr)
         return 2
     write_atomic(args.results_dir / "REPRODUCTION.md", text)
+    if args.publish:
+        prefix = os.path.relpath(args.results_dir.resolve(), args.publish.resolve().parent)
+        write_atomic(args.publish, text.replace("](figures/", f"]({prefix}/figures/")
+                     .replace("](table1.md)", f"]({prefix}/table1.md)"))
+        print(f"wrote {args.publish} (links into {prefix}/)")
     print(f"wrote {args.results_dir / 'REPRODUCTION.md'}: "
           + ", ".join(f"{counts.get(v, 0)} {v}" for v in VERDICTS)
           + f"; {drawn} figures/tables drawn, {skipped} skipped")

@@ -290,6 +290,19 @@ class TestFiguresAndReport(TempDirCase):
         self.assertTrue((run_dir / "figures" / "fig06.svg").exists())
         self.assertFalse((run_dir / "figures" / "fig09.png").exists())
 
+    def test_report_publish_rewrites_links(self):
+        run_dir = self.tmp / "results" / "run"
+        shutil.copytree(self.run_dir, run_dir)
+        published = self.tmp / "results" / "REPRODUCTION.md"
+        with contextlib.redirect_stdout(io.StringIO()):
+            self.assertEqual(report.main([str(run_dir), "--publish", str(published)]), 0)
+        own = (run_dir / "REPRODUCTION.md").read_text(encoding="utf-8")
+        copy = published.read_text(encoding="utf-8")
+        self.assertIn("](figures/fig06.png)", own)
+        self.assertIn("](run/figures/fig06.png)", copy)
+        self.assertNotIn("](figures/", copy)
+        self.assertEqual(copy.replace("](run/", "]("), own)
+
     def test_report_corrupt_json(self):
         run_dir = self.tmp / "run"
         shutil.copytree(self.run_dir, run_dir)
