@@ -8,12 +8,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <random>
 #include <set>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "sphnl/case.hpp"
 #include "sphnl/gridders/linked_list.hpp"
 #include "sphnl/gridders/preconditioned_vector.hpp"
 #include "sphnl/gridders/sliding_vector.hpp"
@@ -44,13 +46,16 @@ std::string combo(GridderKind g, CellOrderKind o, bool reorder) {
 
 /// Pairs (by particle id, smaller first) the CLL rules accept: both gridded,
 /// kMinR2 < r^2 < support2, not two boundary particles (pair_filter.hpp).
-PairSet brute_force_pairs(const ParticleSet& ps, double support2) {
+/// period_y > 0: y distances are to the nearest periodic image.
+PairSet brute_force_pairs(const ParticleSet& ps, double support2, double period_y = 0) {
   PairSet pairs;
   for (std::size_t i = 0; i < ps.size(); ++i) {
     if (ps.type[i] == ParticleType::out) continue;
     for (std::size_t j = i + 1; j < ps.size(); ++j) {
       if (ps.type[j] == ParticleType::out || ps.is_fluid[i] + ps.is_fluid[j] <= 0) continue;
-      const double r2 = distance2(ps.x[i] - ps.x[j], ps.y[i] - ps.y[j], ps.z[i] - ps.z[j]);
+      double dy = ps.y[i] - ps.y[j];
+      if (period_y > 0) dy -= period_y * std::round(dy / period_y);
+      const double r2 = distance2(ps.x[i] - ps.x[j], dy, ps.z[i] - ps.z[j]);
       if (r2 < support2 && r2 > CubicSpline::kMinR2)
         pairs.emplace_back(std::min(ps.id[i], ps.id[j]), std::max(ps.id[i], ps.id[j]));
     }
@@ -62,8 +67,8 @@ PairSet brute_force_pairs(const ParticleSet& ps, double support2) {
 /// Pairs the simulation's path finds: ParticleGrid (cells of side sqrt(support2),
 /// optional reordering) swept by CellSweep with the shared distance filter.
 PairSet swept_pairs(ParticleSet& ps, const Box& domain, double support2, GridderKind g, CellOrderKind o, bool reorder,
-                    const GridderOptions& options = {}) {
-  ParticleGrid pg(domain, o, g, options);
+                    const GridderOptions& options = {}, double period_y = 0) {
+  ParticleGrid pg(domain, o, g, options, period_y);
   pg.build(ps, std::sqrt(support2), reorder);
   if (reorder) {  // reordered: keys are non-decreasing, out particles last
     const auto& keys = pg.cell_keys();
@@ -355,6 +360,98 @@ TEST(Combinations, NeighbourSearchMatchesBruteForceOnClouds) {
         for (bool reorder : {false, true})
           EXPECT_EQ(searched_pairs(cloud.ps, cloud.radius, g, o, reorder), truth) << cloud.name << ", " << combo(g, o, reorder);
   }
+}
+
+// ------------------------------------------------------ periodic y (Martin & Moyce slab)
+
+TEST(Periodic, CellSweepFindsNearestImagesAcrossTheSeam) {
+  // Uniform points in a slab 3.3 radii wide in y (3 cells, the last one wider),
+  // so many pairs straddle the seam; every combination must give the
+  // nearest-image brute-force pairs.
+  const double radius = 0.3, period = 3.3 * radius;
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> ux(-1.0, 1.0), uy(0.0, period);
+  std::vector<std::array<double, 3>> pts;
+  for (int i = 0; i < 1200; ++i) pts.push_back({ux(rng), uy(rng), ux(rng)});
+  pts.push_back({0.1, 0.0, 0.1});            // exactly on the seam
+  pts.push_back({0.1, period - 0.05, 0.1});  // its neighbour across it
+  const ParticleSet cloud = cloud_from(pts);
+  const PairSet truth = brute_force_pairs(cloud, radius * radius, period);
+  const PairSet plain = brute_force_pairs(cloud, radius * radius);
+  ASSERT_GT(truth.size(), plain.size() + 500) << "the test needs pairs across the seam";
+  Box domain = bounds_of(cloud, radius);
+  domain.lo[1] = 0;
+  for (GridderKind g : kGridders)
+    for (CellOrderKind o : kOrders)
+      for (bool reorder : {false, true}) {
+        ParticleSet ps = cloud;
+        EXPECT_EQ(swept_pairs(ps, domain, radius * radius, g, o, reorder, {}, period), truth) << combo(g, o, reorder);
+      }
+}
+
+TEST(Periodic, NarrowPeriodIsRefusedWithTheWidthNeeded) {
+  const ParticleSet cloud = cloud_from({{0, 0, 0}, {0, 0.5, 0}});
+  ParticleGrid pg(Box{{-1, 0, -1}, {1, 1, 1}}, CellOrderKind::sort_x, GridderKind::B, {}, 0.55);
+  ParticleSet ps = cloud;
+  try {
+    pg.build(ps, 0.2, false);
+    FAIL() << "a period of 2.75 cells was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("at least 3"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Periodic, SlabCaseHasNoSideWallsAndSimulatesAcrossTheSeam) {
+  // A Martin & Moyce column, coarse, in a slab that is periodic in y.
+  const double a = 2.25 * 0.0254, dx = a / 10;
+  CaseGeometry g;
+  g.tank = Box{{0, 0, 0}, {4.5 * a, 10 * dx, 2 * a + 2 * dx}};
+  g.water = {Box{{0, 0, 0}, {a, 10 * dx, 2 * a}}};
+  g.still_water_depth = 2 * a;
+  g.periodic_y = true;
+  RunConfig c;
+  c.progress = false;
+  const double h = c.h_coefficient * std::sqrt(3.0) * dx;
+  const PhysicsParams phys = PhysicsParams::make(h, g.still_water_depth, c.sound_speed_coef, c.viscosity_alpha,
+                                                 c.xsph_epsilon, c.cfl, c.clamp_boundary_density);
+  Case cs = make_case(g, dx, Lattice::bcc, c.h_coefficient, phys);
+  const double period = cs.period_y;
+  EXPECT_NEAR(period, 10 * dx, 1e-12);
+  std::map<long, std::size_t> fluid_per_layer;  // y in half spacings -> fluid particles
+  for (std::size_t i = 0; i < cs.particles.size(); ++i) {
+    const double x = cs.particles.x[i], y = cs.particles.y[i], z = cs.particles.z[i];
+    ASSERT_TRUE(y >= 0 && y < period) << "y " << y;
+    if (cs.particles.type[i] == ParticleType::fluid)
+      ++fluid_per_layer[std::lround(2 * y / dx)];
+    else  // walls at x = 0 and x = 4.5a and the floor, none in y
+      EXPECT_TRUE(x <= 1e-9 || x >= g.tank.hi[0] - 1e-9 || z <= 1e-9) << x << " " << y << " " << z;
+  }
+  ASSERT_EQ(fluid_per_layer.size(), 20u);  // 10 dx of BCC layers, each dx/2
+  for (const auto& [layer, count] : fluid_per_layer)
+    EXPECT_EQ(count, fluid_per_layer.at(layer % 2)) << "layer " << layer;  // translation invariant in y
+
+  RunConfig vl = c;
+  vl.list = ListKind::vlx;
+  EXPECT_THROW(Simulation(vl, cs, phys), ConfigError);
+
+  Simulation sim(c, std::move(cs), phys);
+  for (int s = 0; s < 80; ++s) sim.step();
+  const ParticleSet& state = sim.particles();
+  for (std::size_t i = 0; i < state.size(); ++i)
+    ASSERT_TRUE(state.y[i] >= 0 && state.y[i] < period) << "particle " << state.id[i] << " y " << state.y[i];
+  const double support2 = sim.physics().kernel.support2;
+  const PairSet truth = brute_force_pairs(state, support2, period);
+  ASSERT_GT(truth.size(), brute_force_pairs(state, support2).size() + 100);
+  GridderOptions options;
+  options.dx = dx;
+  options.h = sim.physics().h();
+  options.particles_per_dx3 = 2;
+  for (GridderKind gk : kGridders) {
+    ParticleSet ps = state;
+    EXPECT_EQ(swept_pairs(ps, sim.case_info().domain, support2, gk, CellOrderKind::sort_x, true, options, period), truth)
+        << "gridder " << to_string(gk);
+  }
+  EXPECT_EQ(sim.lost(), 0u);
 }
 
 namespace {

@@ -25,6 +25,7 @@ struct Lattice3 {
   double dx;
   bool bcc;
   int layer;          // boundary thickness in half units beyond the wall plane: 1 (BCC, two layers) or 0
+  bool periodic_y;    // no y walls; y nodes 0 <= b < hi[1] (b = hi[1] is the image of b = 0)
   long hi[3];         // tank inner faces (half units), snapped to even = lattice planes
   struct SolidBox { long lo[3], hi[3]; };
   std::vector<SolidBox> obstacles;
@@ -32,7 +33,8 @@ struct Lattice3 {
   std::vector<WaterBox> water;
   const CaseGeometry* g;
 
-  Lattice3(const CaseGeometry& geo, double spacing, Lattice lattice) : dx(spacing), bcc(lattice == Lattice::bcc), g(&geo) {
+  Lattice3(const CaseGeometry& geo, double spacing, Lattice lattice)
+      : dx(spacing), bcc(lattice == Lattice::bcc), periodic_y(geo.periodic_y), g(&geo) {
     layer = bcc ? 1 : 0;
     auto snap = [&](double v) { return 2 * std::lround(v / dx); };  // nearest lattice plane
     for (int d = 0; d < 3; ++d) hi[d] = snap(geo.tank.hi[d] - geo.tank.lo[d]);
@@ -59,9 +61,9 @@ struct Lattice3 {
 
   Node classify(long a, long b, long c) const {
     // Tank walls: the wall plane and `layer` half units outward, up to the wall top.
-    const bool in_tank_shell = a >= -layer && a <= hi[0] + layer && b >= -layer && b <= hi[1] + layer &&
+    const bool in_tank_shell = a >= -layer && a <= hi[0] + layer && (periodic_y || (b >= -layer && b <= hi[1] + layer)) &&
                                c >= -layer && c <= hi[2];
-    const bool inside_tank = a > 0 && a < hi[0] && b > 0 && b < hi[1] && c > 0;
+    const bool inside_tank = a > 0 && a < hi[0] && (periodic_y ? b >= 0 && b < hi[1] : b > 0 && b < hi[1]) && c > 0;
     if (in_tank_shell && !inside_tank) return Node::boundary;
     if (!inside_tank || c > hi[2]) return Node::none;
     for (const SolidBox& o : obstacles) {
@@ -84,7 +86,7 @@ struct Lattice3 {
   template <class F>
   void for_each_node(F&& f) const {
     for (long c = -layer; c <= hi[2]; ++c)
-      for (long b = -layer; b <= hi[1] + layer; ++b)
+      for (long b = periodic_y ? 0 : -layer; b <= (periodic_y ? hi[1] - 1 : hi[1] + layer); ++b)
         for (long a = -layer; a <= hi[0] + layer; ++a)
           if (is_node(a, b, c)) {
             const Node k = classify(a, b, c);
@@ -177,6 +179,11 @@ Case make_case(const CaseGeometry& g, double dx, Lattice lattice, double h_coeff
   }
   for (int a = 0; a < 3; ++a) { d.lo[a] -= 2 * cs.h; d.hi[a] += 2 * cs.h; }
   d.hi[2] += g.tank.hi[2] - g.tank.lo[2];
+  if (g.periodic_y) {  // one period, the lattice's: y nodes at b dx/2 for 0 <= b < hi[1]
+    cs.period_y = 0.5 * dx * static_cast<double>(lat.hi[1]);
+    d.lo[1] = g.tank.lo[1];
+    d.hi[1] = g.tank.lo[1] + cs.period_y;
+  }
   cs.domain = d;
   return cs;
 }

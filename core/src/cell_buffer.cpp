@@ -57,6 +57,11 @@ void CellBuffer::gather(const ParticleSet& ps, const std::uint32_t* index, std::
     for (int s = M0; s <= M5; ++s) zero(s);
 }
 
+void CellBuffer::shift_y(std::uint32_t begin, std::uint32_t end, double shift) {
+  double* y = arrays_[Y].data();
+  for (std::uint32_t k = begin; k < end; ++k) y[k] += shift;
+}
+
 void CellBuffer::scatter_add(const ParticleView& t, unsigned mask) const {
   const std::uint32_t* idx = index_.data();
   auto s = [&](double* dst, int slot) { scatter_field(dst, arrays_[slot].data(), idx, size_); };

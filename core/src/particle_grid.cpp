@@ -1,13 +1,21 @@
 #include "sphnl/neighbours/particle_grid.hpp"
 
+#include <stdexcept>
+#include <string>
+
 namespace sphnl {
 
-ParticleGrid::ParticleGrid(const Box& domain, CellOrderKind order, GridderKind gridder, const GridderOptions& options)
-    : domain_(domain), order_(make_cell_order(order)), gridder_(make_gridder(gridder, options)) {}
+ParticleGrid::ParticleGrid(const Box& domain, CellOrderKind order, GridderKind gridder, const GridderOptions& options,
+                           double period_y)
+    : domain_(domain), period_y_(period_y), order_(make_cell_order(order)), gridder_(make_gridder(gridder, options)) {}
 
 bool ParticleGrid::build(ParticleSet& ps, double cell_size, bool reorder) {
   if (cell_size != grid_.cell_size) {  // Verlet lists change 2H at every rebuild
-    grid_ = CellGrid(domain_, cell_size);
+    grid_ = CellGrid(domain_, cell_size, period_y_);
+    if (period_y_ > 0 && grid_.n[1] < CellGrid::kMinPeriodicCells)
+      throw std::invalid_argument("a periodic y of " + std::to_string(period_y_) + " m holds " +
+                                  std::to_string(grid_.n[1]) + " cells of " + std::to_string(cell_size) +
+                                  " m; it must hold at least 3: widen the slab to >= 3 cell sizes (6h)");
     order_->setup(grid_);
   }
   keys_.resize(ps.size());

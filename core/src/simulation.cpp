@@ -41,14 +41,18 @@ void Simulation::init() {
   if (config_.list_steps < 1)
     throw ConfigError("list_steps must be >= 1 (n_s, the steps a Verlet list is meant to live); got " +
                       std::to_string(config_.list_steps));
+  if (case_.period_y > 0 && config_.list != ListKind::cll)
+    throw ConfigError("list = " + std::string(to_string(config_.list)) +
+                      ": this case has a periodic y, which only the cell-linked list handles (its cell sweep "
+                      "wraps across the seam; Verlet lists store pairs without the image shift); use list = cll");
   const GridderOptions options = gridder_options();
-  grid_ = std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, options);
+  grid_ = std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, options, case_.period_y);
   force_ops_.assign(config_.threads, ForceOp<false>{&phys_, 0});
   force_ops_kgc_.assign(config_.threads, ForceOp<true>{&phys_, 0});
   kgc_ops_.assign(config_.threads, KgcMatrixOp{&phys_});
   no_ops_.assign(config_.threads, NoOp{});
   if (config_.verify_lists && config_.list != ListKind::cll)
-    verify_grid_ = std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, options);
+    verify_grid_ = std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, options, case_.period_y);
   update_derived(phys_, ps_, 0, ps_.size());
 }
 
@@ -137,7 +141,8 @@ void Simulation::build_verlet_list() {
 std::uint64_t Simulation::count_list_misses() {
   if (config_.list == ListKind::cll) return 0;
   if (!verify_grid_)
-    verify_grid_ = std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, gridder_options());
+    verify_grid_ = std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, gridder_options(),
+                                                  case_.period_y);
   verify_grid_->build(ps_, 2.0 * phys_.h(), false);
   const std::uint64_t truth = verify_cll_.for_each_pair(*verify_grid_, ps_, no_ops_, phys_.kernel.support2).interactions;
   // Every listed pair that passes the 2h filter is a true pair and is listed
@@ -216,6 +221,13 @@ void Simulation::update(double dt) {
     const double vz = (euler ? ps_.vz[i] : ps_.vz_prev[i]) + k * dt * az;
     ps_.vx_prev[i] = ps_.vx[i]; ps_.vy_prev[i] = ps_.vy[i]; ps_.vz_prev[i] = ps_.vz[i];
     ps_.vx[i] = vx; ps_.vy[i] = vy; ps_.vz[i] = vz;
+    if (case_.period_y > 0) {  // back into [lo, lo + period): the cell sweep finds its images
+      double& y = ps_.y[i];
+      const double lo = dom.lo[1], hi = lo + case_.period_y;
+      if (y < lo) y += case_.period_y;
+      else if (y >= hi) y -= case_.period_y;
+      if (y >= hi || y < lo) y = lo;  // -1e-18 + period rounds to period itself
+    }
     // A particle that left the domain or whose density left [700, 1300] is
     // parked: flagged out, at rest, excluded from the neighbour search.
     const double rho = ps_.rho[i];

@@ -19,6 +19,9 @@ struct CaseGeometry {
   std::vector<Box> water;       // water at rest, hydrostatic below each block's top
   std::vector<Box> obstacles;   // solid boxes standing on the floor
   double still_water_depth = 0; // H, sets the speed of sound c0 = coef sqrt(g H)
+  /// No side walls in y: the tank's y extent (snapped to the lattice) is one
+  /// period, for slabs that must behave two-dimensionally (Martin & Moyce).
+  bool periodic_y = false;
 };
 
 /// Paper §2.2: box 1.6 x 0.61 x 0.75 m, water 0.4 x 0.61 x 0.3 m at x = 0,
@@ -28,6 +31,7 @@ CaseGeometry dam_break_geometry();
 struct Case {
   ParticleSet particles;        // fluid first, then boundary; id = index
   Box domain;                   // particles leaving it are `out`
+  double period_y = 0;          // > 0: y is periodic over [domain.lo[1], domain.lo[1] + period_y)
   double dx = 0, h = 0;
   std::size_t n_fluid = 0, n_boundary = 0;
 };

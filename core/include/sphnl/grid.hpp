@@ -19,12 +19,26 @@ struct CellGrid {
   Box box;
   double cell_size = 0, inv_cell_size = 0;
   int n[3] = {0, 0, 0};  // ncx, ncy, ncz
+  /// > 0: y is periodic with this period, box.lo[1] <= y < box.lo[1] + period_y.
+  /// The period holds a whole number n[1] of cells (the last one is wider, up
+  /// to two cell sizes), so a neighbour cell across the seam is cell 0 or n[1]-1.
+  double period_y = 0;
 
   CellGrid() = default;
-  CellGrid(const Box& b, double size) : box(b), cell_size(size), inv_cell_size(1.0 / size) {
+  CellGrid(const Box& b, double size, double period = 0)
+      : box(b), cell_size(size), inv_cell_size(1.0 / size), period_y(period) {
     for (int d = 0; d < 3; ++d)
       n[d] = std::max(1, static_cast<int>(std::ceil((b.hi[d] - b.lo[d]) * inv_cell_size)));
+    if (period_y > 0) {
+      // Floor, not ceil: every cell at least `size` wide, so pairs closer than
+      // `size` are in the same or adjacent cells also across the seam.
+      n[1] = static_cast<int>(std::floor(period_y * inv_cell_size * (1 + 1e-12)));
+      box.hi[1] = box.lo[1] + period_y;
+    }
   }
+  /// Fewer than three cells across the period would make a cell its own
+  /// neighbour (or one neighbour twice) through the seam.
+  static constexpr int kMinPeriodicCells = 3;
   long num_cells() const { return static_cast<long>(n[0]) * n[1] * n[2]; }
   /// Cell coordinate of a position along axis d, clamped into the grid (the
   /// caller guarantees the position is inside the box).

@@ -20,6 +20,9 @@ class CellBuffer {
   /// Adds the accumulators named by `mask` into the accumulator arrays of
   /// `target` (the particles' own, or a thread's private copy).
   void scatter_add(const ParticleView& target, unsigned mask) const;
+  /// Adds `shift` to the gathered y of entries [begin, end): the periodic image
+  /// of a cell across the seam (the particles' own y is untouched).
+  void shift_y(std::uint32_t begin, std::uint32_t end, double shift);
   ParticleView view() { return view_; }
   std::uint32_t size() const { return size_; }
   std::uint32_t* index() { return index_.data(); }

@@ -8,6 +8,9 @@
 // water and the other the empty upper half of the tank); each accumulates into
 // private arrays that are summed afterwards in a fixed order, so results are
 // deterministic for a fixed thread count.
+// With a periodic y (CellGrid::period_y) the stencil wraps across the seam and
+// the gathered copies of the cells beyond it are shifted by the period, so the
+// distance filter and the pair kernel see the nearest image and stay unchanged.
 #include <omp.h>
 
 #include <array>
@@ -51,6 +54,7 @@ class CellSweep {
     split_keys(order, gridder, ps, threads);
     const std::uint64_t* coords = order.key_coords().data();
     const unsigned outputs = mask & (fields::force_out | fields::kgc_m_out);
+    const bool periodic = grid.period_y > 0;
 #pragma omp parallel num_threads(threads)
     {
       const int t = omp_get_thread_num();
@@ -63,12 +67,23 @@ class CellSweep {
         if (n_home == 0) continue;
         const auto [cx, cy, cz] = CellOrder::unpack_coords(c);
         std::uint32_t total = n_home;
+        int n_seam = 0;  // neighbour cells across a periodic seam: gathered range and y shift
+        std::array<SeamCell, kHalfStencil.size()> seam;
         for (const auto& o : kHalfStencil) {
-          const int nx = cx + o[0], ny = cy + o[1], nz = cz + o[2];
+          const int nx = cx + o[0], nz = cz + o[2];
+          int ny = cy + o[1];
+          double shift = 0;
+          if (periodic && (ny < 0 || ny >= grid.n[1])) {  // the image across the seam
+            shift = ny < 0 ? -grid.period_y : grid.period_y;
+            ny -= ny < 0 ? -grid.n[1] : grid.n[1];
+          }
           if (nx < 0 || ny < 0 || nx >= grid.n[0] || ny >= grid.n[1] || nz >= grid.n[2]) continue;
+          const std::uint32_t begin = total;
           total += gridder.gather_cell(order.key(nx, ny, nz), idx + total);
+          if (shift != 0 && total > begin) seam[n_seam++] = {begin, total, shift};
         }
         s.buffer.gather(ps, idx, total, mask);
+        for (int k = 0; k < n_seam; ++k) s.buffer.shift_y(seam[k].begin, seam[k].end, seam[k].shift);
         visit(t, s, n_home);
         if (outputs) s.buffer.scatter_add(s.target, outputs);
       }
@@ -79,6 +94,10 @@ class CellSweep {
   std::size_t bytes() const;
 
  private:
+  struct SeamCell {
+    std::uint32_t begin, end;
+    double shift;
+  };
   void prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads);
   /// Fills thread_begin_: thread t sweeps keys [thread_begin_[t], thread_begin_[t+1]).
   void split_keys(const CellOrder& order, const Gridder& gridder, const ParticleSet& ps, int threads);

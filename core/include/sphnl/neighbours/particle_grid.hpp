@@ -17,7 +17,10 @@ namespace sphnl {
 
 class ParticleGrid {
  public:
-  ParticleGrid(const Box& domain, CellOrderKind order, GridderKind gridder, const GridderOptions& options);
+  /// period_y > 0: y is periodic (CellGrid::period_y); the cell sweep then
+  /// wraps its stencil across the seam.
+  ParticleGrid(const Box& domain, CellOrderKind order, GridderKind gridder, const GridderOptions& options,
+               double period_y = 0);
 
   /// Grids `ps` with cells of side `cell_size`; when `reorder` is set, first
   /// permutes every particle array into cell order (out particles last) and
@@ -34,6 +37,7 @@ class ParticleGrid {
 
  private:
   Box domain_;
+  double period_y_ = 0;
   CellGrid grid_;
   std::unique_ptr<CellOrder> order_;
   std::unique_ptr<Gridder> gridder_;
