@@ -209,8 +209,8 @@ def load_run(run_dir):
     if not run_dir.is_dir():
         raise ResultsError(f"{run_dir}: no such results folder")
     rows = []
-    for path in sorted(run_dir.glob("*.json")):
-        if path.name != "machine.json":
+    for path in sorted(run_dir.glob("*.json")):  # glob matches dot files too
+        if path.name != "machine.json" and not path.name.startswith("."):
             rows += entry_rows(read_benchmark_json(path), path.stem)
     df = pd.DataFrame(rows)
     if df.empty:

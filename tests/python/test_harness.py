@@ -185,6 +185,12 @@ class TestRunAndLoad(TempDirCase):
         self.assertIsNone(machine["max_n"])
         self.assertEqual([e["max_n"] for e in machine["earlier"]], [16000])  # a skip writes nothing
 
+    def test_hidden_files_of_a_run_in_progress_are_ignored(self):
+        out_dir, _ = fake_run(self.tmp, "tiny", "--only", "fig06")
+        (out_dir / ".fig12.experiment.json").write_text('{"id": "fig12"}', encoding="utf-8")
+        (out_dir / ".fig12.json.partial").write_text("{", encoding="utf-8")
+        self.assertEqual(set(R.load_run(out_dir)["experiment"]), {"fig06"})
+
     def test_max_n_rejects_nonsense(self):
         code, _, err = run_cli("--size", "tiny", "--bench", FAKE, "--max-n", "0")
         self.assertEqual(code, 2)
