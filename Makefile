@@ -17,7 +17,7 @@ CMAKE_FLAGS ?=
 SIZE := $(if $(filter 1 yes true,$(FULL)),full,default)
 # One folder per size and revision: re-running resumes, a new commit starts afresh.
 RUN_ID ?= $(SIZE)-$(shell git rev-parse --short=12 HEAD 2>/dev/null || echo norev)
-RESULTS ?= results/reference
+RESULTS ?= results/full
 BASE ?=
 THRESHOLD ?= 2
 REPS ?= 5
