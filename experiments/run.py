@@ -158,7 +158,7 @@ def resume_plan(args, exp, out_path):
         return exp, []
     try:
         doc = R.read_benchmark_json(out_path)
-        missing = R.missing_points(out_path, exp, args.size)
+        missing = R.missing_in(doc, exp, args.size)
     except R.ResultsError:
         return exp, []
     rerun = {R.parse_run_name(name)[1]["n"] for name in missing}
@@ -166,7 +166,7 @@ def resume_plan(args, exp, out_path):
     def n_of(entry):
         family, params = R.parse_run_name(entry.get("run_name", entry.get("name", "")))
         return params.get("n") if family == exp["benchmark"] else None
-    keep = [b for b in doc["benchmarks"] if n_of(b) is not None and n_of(b) not in rerun]
+    keep = [b for b in doc["benchmarks"] if n_of(b) not in (None, *rerun)]
     if not keep:
         return exp, []
     print(f"  {exp['id']}: keeping {len(keep)} entries of {out_path.name}; running only "
@@ -226,13 +226,13 @@ def run_experiment(args, exp, out_path, label):
             raise RunError(f"{exp['id']}: {args.bench} exited with status {rc}; nothing saved.\n"
                            "Last lines of its stderr:\n  " + "\n  ".join(tail or ["(empty)"]))
         try:
+            doc = R.read_benchmark_json(tmp)
             if keep:  # merge with the entries kept from the earlier run
-                doc = R.read_benchmark_json(tmp)
                 doc["benchmarks"] = keep + doc["benchmarks"]
                 doc["context"]["sphnl_merged"] = (f"{len(keep)} entries kept from an earlier run "
                                                   "of this experiment (other N)")
                 R.write_atomic(tmp, json.dumps(doc, indent=2) + "\n")
-            missing = R.missing_points(tmp, full_exp, size)
+            missing = R.missing_in(doc, full_exp, size)
         except R.ResultsError as e:
             raise RunError(f"{exp['id']}: the bench exited 0 but its output is unusable: {e}") from None
         if missing:

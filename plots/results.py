@@ -162,7 +162,11 @@ def read_benchmark_json(path):
 
 def missing_points(path, exp, size):
     """Names of the sweep points of `exp` that `path` does not list (raises on a bad file)."""
-    doc = read_benchmark_json(path)
+    return missing_in(read_benchmark_json(path), exp, size)
+
+
+def missing_in(doc, exp, size):
+    """Names of the sweep points of `exp` that the parsed benchmark JSON `doc` does not list."""
     axes = list(exp["sweep"][size])
     have = set()
     for entry in doc["benchmarks"]:

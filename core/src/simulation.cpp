@@ -45,15 +45,19 @@ void Simulation::init() {
     throw ConfigError("list = " + std::string(to_string(config_.list)) +
                       ": this case has a periodic y, which only the cell-linked list handles (its cell sweep "
                       "wraps across the seam; Verlet lists store pairs without the image shift); use list = cll");
-  const GridderOptions options = gridder_options();
-  grid_ = std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, options, case_.period_y);
+  grid_ = make_particle_grid();
   force_ops_.assign(config_.threads, ForceOp<false>{&phys_, 0});
   force_ops_kgc_.assign(config_.threads, ForceOp<true>{&phys_, 0});
   kgc_ops_.assign(config_.threads, KgcMatrixOp{&phys_});
   no_ops_.assign(config_.threads, NoOp{});
   if (config_.verify_lists && config_.list != ListKind::cll)
-    verify_grid_ = std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, options, case_.period_y);
+    verify_grid_ = make_particle_grid();
   update_derived(phys_, ps_, 0, ps_.size());
+}
+
+std::unique_ptr<ParticleGrid> Simulation::make_particle_grid() const {
+  return std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, gridder_options(),
+                                        case_.period_y);
 }
 
 GridderOptions Simulation::gridder_options() const {
@@ -141,8 +145,7 @@ void Simulation::build_verlet_list() {
 std::uint64_t Simulation::count_list_misses() {
   if (config_.list == ListKind::cll) return 0;
   if (!verify_grid_)
-    verify_grid_ = std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, gridder_options(),
-                                                  case_.period_y);
+    verify_grid_ = make_particle_grid();
   verify_grid_->build(ps_, 2.0 * phys_.h(), false);
   const std::uint64_t truth = verify_cll_.for_each_pair(*verify_grid_, ps_, no_ops_, phys_.kernel.support2).interactions;
   // Every listed pair that passes the 2h filter is a true pair and is listed

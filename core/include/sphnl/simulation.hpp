@@ -102,6 +102,8 @@ class Simulation {
   void init();
   /// What the gridders need to know of the case (gridder C sizes its rows from it).
   GridderOptions gridder_options() const;
+  /// A ParticleGrid over this case's domain (and periodic y) with the configured order and gridder.
+  std::unique_ptr<ParticleGrid> make_particle_grid() const;
   void build_verlet_list();
   void compute_forces();
   void update(double dt);
