@@ -7,7 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "sphnl/config.hpp"
-#include "sphnl/run.hpp"
+#include "run.hpp"
 
 using nlohmann::json;
 using sphnl::ConfigError;

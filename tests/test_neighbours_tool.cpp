@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "sphnl/neighbours/neighbour_search.hpp"
-#include "sphnl/neighbours_tool.hpp"
+#include "neighbours_tool.hpp"
 
 using namespace sphnl;
 namespace fs = std::filesystem;

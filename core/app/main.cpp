@@ -5,12 +5,9 @@
 #include <cstring>
 #include <string>
 
-#include "sphnl/run.hpp"
-#if __has_include("sphnl/neighbours_tool.hpp")
-#include "sphnl/neighbours_tool.hpp"
+#include "neighbours_tool.hpp"
+#include "run.hpp"
 #include "sphnl_revision.hpp"
-#define SPHNL_HAVE_NEIGHBOURS_TOOL 1
-#endif
 
 namespace {
 
@@ -25,17 +22,6 @@ const char* const kUsage =
     "  help        this text; `sphnl <command> --help` for the options of a command\n"
     "  --version   git revision and build type\n";
 
-int neighbours(int argc, char** argv) {
-#ifdef SPHNL_HAVE_NEIGHBOURS_TOOL
-  return sphnl::neighbours_main(argc, argv);
-#else
-  (void)argc;
-  (void)argv;
-  std::fprintf(stderr, "sphnl: the 'neighbours' command is not available in this build\n");
-  return 2;
-#endif
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -45,7 +31,7 @@ int main(int argc, char** argv) {
   }
   const std::string command = argv[1];
   if (command == "run") return sphnl::run_main(argc - 1, argv + 1);
-  if (command == "neighbours") return neighbours(argc - 1, argv + 1);
+  if (command == "neighbours") return sphnl::neighbours_main(argc - 1, argv + 1);
   if (command == "help" || command == "--help" || command == "-h") {
     std::fputs(kUsage, stdout);
     return 0;

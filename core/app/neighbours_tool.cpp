@@ -1,4 +1,4 @@
-#include "sphnl/neighbours_tool.hpp"
+#include "neighbours_tool.hpp"
 
 #include <unistd.h>
 

@@ -1,4 +1,4 @@
-#include "sphnl/run.hpp"
+#include "run.hpp"
 
 #include <sys/resource.h>
 #include <unistd.h>

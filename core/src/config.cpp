@@ -128,9 +128,6 @@ const std::vector<Key>& key_table() {
 }
 }  // namespace
 
-const char* to_string(GridderKind g) { return kGridderNames[static_cast<int>(g)]; }
-const char* to_string(CellOrderKind o) { return kOrderNames[static_cast<int>(o)]; }
-const char* to_string(ListKind l) { return kListNames[static_cast<int>(l)]; }
 const char* to_string(Lattice l) { return kLatticeNames[static_cast<int>(l)]; }
 
 std::vector<std::string> config_keys() {

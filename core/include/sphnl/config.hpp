@@ -8,23 +8,14 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include "sphnl/input_error.hpp"
+#include "sphnl/kinds.hpp"
+
 namespace sphnl {
 
-enum class GridderKind : std::uint8_t { A, B, C, D };            // paper §2.3
-enum class CellOrderKind : std::uint8_t { sort_x, sort_xy, sort_xyz, hilbert };  // §2.4
-enum class ListKind : std::uint8_t { cll, vlc, vlx };         // §2.5
 enum class Lattice : std::uint8_t { bcc, cubic };
 
-const char* to_string(GridderKind g);
-const char* to_string(CellOrderKind o);
-const char* to_string(ListKind l);
 const char* to_string(Lattice l);
-
-/// Thrown for any invalid user input; the message names the key or path and
-/// what is allowed.
-struct ConfigError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
 
 struct RunConfig {
   // size: exactly one of particles / dx is used (dx > 0 wins when set)

@@ -9,7 +9,7 @@
 #include <span>
 #include <vector>
 
-#include "sphnl/config.hpp"
+#include "sphnl/kinds.hpp"
 
 namespace sphnl {
 

@@ -17,7 +17,7 @@
 #include <span>
 #include <vector>
 
-#include "sphnl/config.hpp"
+#include "sphnl/kinds.hpp"
 #include "sphnl/grid.hpp"
 #include "sphnl/gridders/gridder.hpp"
 #include "sphnl/orderings/cell_order.hpp"

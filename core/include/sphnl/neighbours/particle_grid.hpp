@@ -7,7 +7,7 @@
 #include <memory>
 #include <vector>
 
-#include "sphnl/config.hpp"
+#include "sphnl/kinds.hpp"
 #include "sphnl/grid.hpp"
 #include "sphnl/gridders/gridder.hpp"
 #include "sphnl/orderings/cell_order.hpp"

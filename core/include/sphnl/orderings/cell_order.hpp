@@ -7,7 +7,7 @@
 #include <span>
 #include <vector>
 
-#include "sphnl/config.hpp"
+#include "sphnl/kinds.hpp"
 #include "sphnl/grid.hpp"
 #include "sphnl/particles.hpp"
 
