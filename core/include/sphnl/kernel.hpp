@@ -29,19 +29,31 @@ struct CubicSpline {
     inv_w_dp = 1.0 / w(h / 1.5);
   }
 
+  // The one definition of the kernel maths. The pair loops call the two
+  // polynomials below with q = r/h < 2 (the distance filter guarantees it) and
+  // select the branch without a jump, so that they vectorise; w() and f() add
+  // the q > 2 case for callers that have not filtered.
+
+  /// W at q = r/h in [0, 2], eq. 1: both pieces of the cubic spline.
+  double w_of_q(double q) const {
+    const double t = 2.0 - q;
+    return q <= 1.0 ? a2 * (1.0 - 1.5 * q * q + 0.75 * q * q * q) : 0.25 * a2 * t * t * t;
+  }
+  /// r F = dW/dr at q = r/h in [0, 2]; F = (dW/dr)/r is this times 1/r.
+  double dwdr_of_q(double q) const {
+    const double t = 2.0 - q;
+    return q <= 1.0 ? (c1 * q + d1 * q * q) : c2 * t * t;
+  }
+
   /// W(r), eq. 1.
   double w(double r) const {
     const double q = r * inv_h;
-    if (q <= 1.0) return a2 * (1.0 - 1.5 * q * q + 0.75 * q * q * q);
-    if (q <= 2.0) { const double t = 2.0 - q; return 0.25 * a2 * t * t * t; }
-    return 0.0;
+    return q <= 2.0 ? w_of_q(q) : 0.0;
   }
   /// F(r) = (dW/dr)/r, so that grad_a W_ab = F * r_ab.
   double f(double r) const {
     const double q = r * inv_h;
-    if (q <= 1.0) return (c1 * q + d1 * q * q) / r;
-    if (q <= 2.0) { const double t = 2.0 - q; return c2 * t * t / r; }
-    return 0.0;
+    return q <= 2.0 ? dwdr_of_q(q) / r : 0.0;
   }
 };
 

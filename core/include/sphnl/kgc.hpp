@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "sphnl/neighbours/pair_operation.hpp"
 #include "sphnl/particle_view.hpp"
 #include "sphnl/particles.hpp"
 #include "sphnl/physics.hpp"
@@ -21,8 +22,8 @@ struct KgcMatrixOp {
   const PhysicsParams* phys = nullptr;
 
   void interact(const ParticleView& v, std::uint32_t i, const std::uint32_t* __restrict js, int n) {
-    const CubicSpline& k = phys->kernel;
-    const double inv_h = k.inv_h, c1 = k.c1, d1 = k.d1, c2 = k.c2;
+    const CubicSpline k = phys->kernel;  // a local copy: the stores below cannot alias it
+    const double inv_h = k.inv_h;
     const double xa = v.x[i], ya = v.y[i], za = v.z[i];
     const double va = v.mass[i] / v.rho[i];
     double mxx = 0, mxy = 0, mxz = 0, myy = 0, myz = 0, mzz = 0;
@@ -31,8 +32,7 @@ struct KgcMatrixOp {
       const std::uint32_t j = js[p];
       const double dx = xa - v.x[j], dy = ya - v.y[j], dz = za - v.z[j];
       const double r = std::sqrt(dx * dx + dy * dy + dz * dz);
-      const double q = r * inv_h, t = 2.0 - q;
-      const double f = (q <= 1.0 ? (c1 * q + d1 * q * q) : c2 * t * t) / r;
+      const double f = k.dwdr_of_q(r * inv_h) / r;  // F = (dW/dr)/r
       const double vb = v.mass[j] / v.rho[j];
       const double sa = -vb * f, sb = -va * f;  // coefficients of r_ab (x) r_ab
       const double xx = dx * dx, xy = dx * dy, xz = dx * dz, yy = dy * dy, yz = dy * dz, zz = dz * dz;
@@ -44,6 +44,8 @@ struct KgcMatrixOp {
     v.m_kgc[3][i] += myy; v.m_kgc[4][i] += myz; v.m_kgc[5][i] += mzz;
   }
 };
+
+static_assert(PairOperation<KgcMatrixOp>);
 
 /// Zeroes M_a of every particle before the pre-pass.
 void clear_kgc_matrices(ParticleSet& ps);

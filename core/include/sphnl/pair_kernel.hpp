@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "sphnl/neighbours/pair_operation.hpp"
 #include "sphnl/particle_view.hpp"
 #include "sphnl/physics.hpp"
 
@@ -25,8 +26,8 @@ struct ForceOp {
 
   /// Particle i interacts with js[0..n) (all distinct, all with r < 2h).
   void interact(const ParticleView& v, std::uint32_t i, const std::uint32_t* __restrict js, int n) {
-    const CubicSpline& k = phys->kernel;
-    const double h = k.h, inv_h = k.inv_h, a2 = k.a2, c1 = k.c1, d1 = k.d1, c2 = k.c2;
+    const CubicSpline k = phys->kernel;  // a local copy: the stores below cannot alias it
+    const double h = k.h, inv_h = k.inv_h;
     const double inv_w_dp = k.inv_w_dp, eta2 = phys->eta2, alpha = phys->alpha, eps = phys->xsph_epsilon;
     const double xa = v.x[i], ya = v.y[i], za = v.z[i];
     const double vxa = v.vx[i], vya = v.vy[i], vza = v.vz[i];
@@ -43,10 +44,10 @@ struct ForceOp {
       const double dx = xa - v.x[j], dy = ya - v.y[j], dz = za - v.z[j];
       const double r2 = dx * dx + dy * dy + dz * dz;
       const double r = std::sqrt(r2), inv_r = 1.0 / r;
-      const double q = r * inv_h, t = 2.0 - q;
+      const double q = r * inv_h;
       // Kernel (eq. 1) and F = (dW/dr)/r; both branches computed, then selected.
-      const double w = q <= 1.0 ? a2 * (1.0 - 1.5 * q * q + 0.75 * q * q * q) : 0.25 * a2 * t * t * t;
-      const double f = (q <= 1.0 ? (c1 * q + d1 * q * q) : c2 * t * t) * inv_r;
+      const double w = k.w_of_q(q);
+      const double f = k.dwdr_of_q(q) * inv_r;
       // Tensile correction (Monaghan 2000): (R_a + R_b) (W/W(dp))^4, plain W.
       const double fw = w * inv_w_dp, fw2 = fw * fw;
       const double dvx = vxa - v.vx[j], dvy = vya - v.vy[j], dvz = vza - v.vz[j];
@@ -87,5 +88,7 @@ struct ForceOp {
     max_mu = mu_max;
   }
 };
+
+static_assert(PairOperation<ForceOp<false>> && PairOperation<ForceOp<true>>);
 
 }  // namespace sphnl

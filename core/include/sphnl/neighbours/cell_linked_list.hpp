@@ -7,6 +7,7 @@
 #include "sphnl/neighbours/cell_sweep.hpp"
 #include "sphnl/neighbours/pair_counts.hpp"
 #include "sphnl/neighbours/pair_filter.hpp"
+#include "sphnl/neighbours/pair_operation.hpp"
 #include "sphnl/neighbours/particle_grid.hpp"
 
 namespace sphnl {
@@ -14,7 +15,7 @@ namespace sphnl {
 class CellLinkedList {
  public:
   /// Runs ops[thread].interact on every pair with r^2 < support2 (once per pair).
-  template <class Op>
+  template <PairOperation Op>
   PairCounts for_each_pair(const ParticleGrid& pg, ParticleSet& ps, std::vector<Op>& ops, double support2) {
     const int threads = static_cast<int>(ops.size());
     counts_.assign(threads, PairCounts{});

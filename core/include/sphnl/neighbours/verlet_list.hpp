@@ -22,6 +22,7 @@
 #include "sphnl/neighbours/cell_sweep.hpp"
 #include "sphnl/neighbours/pair_counts.hpp"
 #include "sphnl/neighbours/pair_filter.hpp"
+#include "sphnl/neighbours/pair_operation.hpp"
 #include "sphnl/neighbours/particle_grid.hpp"
 #include "sphnl/neighbours/thread_accumulators.hpp"
 #include "sphnl/particle_view.hpp"
@@ -38,7 +39,7 @@ class VerletList {
   /// on the global particle arrays (once per pair). Threads take contiguous
   /// ranges of particles with equal shares of the list; threads > 0 accumulate
   /// privately and are summed in a fixed order (deterministic for a fixed count).
-  template <class Op>
+  template <PairOperation Op>
   PairCounts for_each_pair(ParticleSet& ps, std::vector<Op>& ops, double support2);
 
   /// Stored pairs (each unordered pair once).
@@ -83,7 +84,7 @@ class VerletList {
   std::vector<PairCounts> counts_;
 };
 
-template <class Op>
+template <PairOperation Op>
 PairCounts VerletList::for_each_pair(ParticleSet& ps, std::vector<Op>& ops, double support2) {
   const int threads = static_cast<int>(ops.size());
   constexpr unsigned outputs = Op::kFields & (fields::force_out | fields::kgc_m_out);
