@@ -15,8 +15,10 @@
 #include "sphnl/neighbours/cell_linked_list.hpp"
 #include "sphnl/neighbours/particle_grid.hpp"
 #include "sphnl/simulation.hpp"
+#include "support/pair_recorder.hpp"
 
 using namespace sphnl;
+using namespace sphnl::test;
 
 namespace {
 
@@ -30,41 +32,6 @@ RunConfig dam_break(ListKind list, int list_steps, double skin_factor = 0) {
   c.list_steps = list_steps;
   c.skin_factor = skin_factor;
   return c;
-}
-
-/// Records the positions of both particles of every pair it is given.
-struct PairRecorder {
-  static constexpr unsigned kFields = fields::position;
-  std::vector<std::array<double, 6>>* out = nullptr;
-  void interact(const ParticleView& v, std::uint32_t i, const std::uint32_t* js, int n) {
-    for (int p = 0; p < n; ++p)
-      out->push_back({v.x[i], v.y[i], v.z[i], v.x[js[p]], v.y[js[p]], v.z[js[p]]});
-  }
-};
-
-struct PositionHash {
-  std::size_t operator()(const std::array<double, 3>& p) const {
-    std::uint64_t b[3];
-    std::memcpy(b, p.data(), sizeof b);
-    return static_cast<std::size_t>(b[0] * 0x9E3779B97F4A7C15ull ^ b[1] * 0xC2B2AE3D27D4EB4Full ^ b[2]);
-  }
-};
-
-/// Pairs as (smaller id, larger id), sorted. Pair sources hand the op either
-/// global or gathered indices, so pairs are recorded by position and mapped to
-/// ids here (particles never coincide).
-std::vector<std::pair<std::uint32_t, std::uint32_t>> to_ids(const ParticleSet& ps,
-                                                            const std::vector<std::array<double, 6>>& pairs) {
-  std::unordered_map<std::array<double, 3>, std::uint32_t, PositionHash> id_at;
-  for (std::size_t i = 0; i < ps.size(); ++i) id_at[{ps.x[i], ps.y[i], ps.z[i]}] = ps.id[i];
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> ids;
-  ids.reserve(pairs.size());
-  for (const auto& p : pairs) {
-    const std::uint32_t a = id_at.at({p[0], p[1], p[2]}), b = id_at.at({p[3], p[4], p[5]});
-    ids.emplace_back(std::min(a, b), std::max(a, b));
-  }
-  std::sort(ids.begin(), ids.end());
-  return ids;
 }
 
 /// Runs `steps` steps; before each, compares the pairs the simulation's list
@@ -82,7 +49,7 @@ void expect_same_pairs_as_cll(Simulation& sim, int steps) {
     grid.build(sim.particles(), 2.0 * sim.physics().h(), false);
     cll.for_each_pair(grid, sim.particles(), rec_truth, sim.physics().kernel.support2);
     ASSERT_EQ(listed.size(), truth.size()) << "step " << s;
-    ASSERT_TRUE(to_ids(sim.particles(), listed) == to_ids(sim.particles(), truth)) << "pair sets differ at step " << s;
+    ASSERT_TRUE(recorded_ids(sim.particles(), listed) == recorded_ids(sim.particles(), truth)) << "pair sets differ at step " << s;
     sim.step();
   }
 }

@@ -77,15 +77,6 @@ class Progress {
   double elapsed_ = 0, last_print_ = -1;
 };
 
-/// Total mass summed in id order: Simulation::total_mass() sums in memory
-/// order, which reordering changes, so its last bits are not comparable
-/// between steps; this sum is (masses never change).
-double total_mass_in_id_order(const ParticleSet& ps) {
-  double m = 0;
-  for (const std::uint32_t i : id_order(ps)) m += ps.mass[i];
-  return m;
-}
-
 std::string snapshot_stem(long step) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "step_%06ld", step);
@@ -178,7 +169,7 @@ json run_summary(const Simulation& sim, double initial_mass, double wall_total_s
                       {"total", t.total()}, {"run", wall_total_s}};
   s["seconds_per_step"] = t.total() / steps;
   s["particles_lost"] = sim.lost();
-  s["total_mass"] = {{"initial", initial_mass}, {"final", total_mass_in_id_order(sim.particles())}};
+  s["total_mass"] = {{"initial", initial_mass}, {"final", sim.total_mass()}};
   s["momentum"] = {p[0], p[1], p[2]};
   s["max_speed"] = sim.max_speed();
   s["neighbour_bytes"] = sim.neighbour_bytes();
@@ -256,7 +247,7 @@ int run_main(int argc, char** argv) {
                                   : (std::to_string(config.end_time) + " s").c_str(),
                  out_dir.string().c_str());
 
-  const double initial_mass = total_mass_in_id_order(sim.particles());
+  const double initial_mass = sim.total_mass();
   std::vector<SnapshotEntry> snapshots;
   double output_seconds = 0;
   auto snapshot = [&] {

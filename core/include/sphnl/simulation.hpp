@@ -76,6 +76,9 @@ class Simulation {
   const NeighbourStats& neighbour_stats() const { return stats_; }
   /// Bytes of the neighbour structures (gridding, ordering, reordering, lists).
   std::size_t neighbour_bytes() const;
+  /// Total mass, summed in id order: reordering permutes memory, and a sum in
+  /// memory order would change its last bits from step to step (masses never
+  /// change, so this sum is exactly the same at every step).
   double total_mass() const;
   /// Sum of m v over fluid particles.
   std::array<double, 3> momentum() const;
@@ -84,7 +87,7 @@ class Simulation {
 
   /// Runs the pair source of the config with one op per thread (the one
   /// run-time dispatch per pass); public for tests of pair sources.
-  template <class Op>
+  template <PairOperation Op>
   PairCounts for_each_pair(std::vector<Op>& ops);
   /// Prepares the pair source for the current positions (phase 1): CLL grids
   /// again; VL_C rebuilds every C = list_steps steps; VL_X rebuilds when a
@@ -140,7 +143,7 @@ class Simulation {
   std::size_t lost_ = 0;
 };
 
-template <class Op>
+template <PairOperation Op>
 PairCounts Simulation::for_each_pair(std::vector<Op>& ops) {
   switch (config_.list) {
     case ListKind::cll: return cll_.for_each_pair(*grid_, ps_, ops, phys_.kernel.support2);

@@ -50,12 +50,11 @@ void CellSweep::reduce(ParticleSet& ps, unsigned outputs, int threads) {
 }
 
 std::size_t CellSweep::bytes() const {
-  std::size_t b = 0;
-  for (const auto& s : scratch_) {
+  // The thread split (thread_begin_, weight_) exists once, whatever the thread count.
+  std::size_t b = thread_begin_.capacity() * sizeof(std::uint32_t) + weight_.capacity() * sizeof(double);
+  for (const auto& s : scratch_)
     b += s.buffer.bytes() + (s.cell_index.capacity() + s.survivors.capacity()) * sizeof(std::uint32_t) +
          s.private_acc.bytes();
-  b += thread_begin_.capacity() * sizeof(std::uint32_t) + weight_.capacity() * sizeof(double);
-  }
   return b;
 }
 
