@@ -26,14 +26,26 @@ Case dam_break_case(const RunConfig& c, PhysicsParams& phys) {
   return make_case(g, dx, c.lattice, c.h_coefficient, phys);
 }
 
+RebuildSettings rebuild_settings(const RunConfig& c) {
+  RebuildSettings r;
+  r.list = c.list;
+  r.list_steps = c.list_steps;
+  r.skin_factor = c.effective_skin_factor();
+  r.reorder = c.reorder;
+  r.reorder_every = c.reorder_every;
+  r.threads = c.threads;
+  return r;
+}
+
 }  // namespace
 
-Simulation::Simulation(const RunConfig& config) : config_(config), case_(dam_break_case(config, phys_)), ps_(case_.particles) {
+Simulation::Simulation(const RunConfig& config)
+    : config_(config), case_(dam_break_case(config, phys_)), ps_(case_.particles), policy_(rebuild_settings(config)) {
   init();
 }
 
 Simulation::Simulation(const RunConfig& config, Case c, const PhysicsParams& phys)
-    : config_(config), phys_(phys), case_(std::move(c)), ps_(case_.particles) {
+    : config_(config), phys_(phys), case_(std::move(c)), ps_(case_.particles), policy_(rebuild_settings(config)) {
   init();
 }
 
@@ -49,7 +61,6 @@ void Simulation::init() {
   force_ops_.assign(config_.threads, ForceOp<false>{&phys_, 0});
   force_ops_kgc_.assign(config_.threads, ForceOp<true>{&phys_, 0});
   kgc_ops_.assign(config_.threads, KgcMatrixOp{&phys_});
-  no_ops_.assign(config_.threads, NoOp{});
   if (config_.verify_lists && config_.list != ListKind::cll)
     verify_grid_ = make_particle_grid();
   update_derived(phys_, ps_, 0, ps_.size());
@@ -69,92 +80,27 @@ GridderOptions Simulation::gridder_options() const {
   return options;
 }
 
+FlowState Simulation::flow_state() const {
+  FlowState f;
+  f.h = phys_.h();
+  f.dt = dt_;
+  f.max_speed = max_speed_;
+  f.cfl = phys_.cfl;
+  f.c0 = phys_.c0;
+  f.gravity = phys_.gravity;
+  f.lost = lost_;
+  return f;
+}
+
 void Simulation::build_neighbours() {
   neighbours_ready_ = true;
-  if (config_.list == ListKind::cll) {
-    const bool reorder = config_.reorder && stats_.builds % static_cast<std::uint64_t>(config_.reorder_every) == 0;
-    grid_->build(ps_, 2.0 * phys_.h(), reorder);
-    ++stats_.builds;
-    stats_.max_steps_per_list = 1;
-    return;
-  }
-  // A particle that went out must leave every list at once (the paper's
-  // criteria only watch motion): rebuild, and count it apart.
-  const bool forced = list_valid_ && lost_ != lost_at_build_;
-  bool rebuild = !list_valid_ || forced;
-  if (!rebuild && config_.list == ListKind::vlc) {
-    // VL_C (§2.5): the list serves exactly C steps.
-    rebuild = list_age_ >= static_cast<std::uint64_t>(config_.list_steps);
-  } else if (!rebuild) {
-    // VL_X (§2.5): valid while no particle has moved more than dh/2 since the
-    // build (then no pair can have closed from beyond 2H = 2h + dh to below 2h).
-    const double limit2 = 0.25 * skin_ * skin_;
-    const std::size_t n = ps_.size();
-    const double *x = ps_.x.data(), *y = ps_.y.data(), *z = ps_.z.data();
-    const double *x0 = x_build_.data(), *y0 = y_build_.data(), *z0 = z_build_.data();
-    double max_d2 = 0;
-#pragma omp simd reduction(max : max_d2)
-    for (std::size_t i = 0; i < n; ++i) {
-      const double dx = x[i] - x0[i], dy = y[i] - y0[i], dz = z[i] - z0[i];
-      max_d2 = std::max(max_d2, dx * dx + dy * dy + dz * dz);
-    }
-    rebuild = max_d2 > limit2;
-  }
-  if (rebuild) {
-    build_verlet_list();
-    if (forced) ++stats_.forced_rebuilds;
-  }
-  ++list_age_;
-  ++stats_.list_steps;
-  stats_.max_steps_per_list = std::max(stats_.max_steps_per_list, list_age_);
-}
-
-double Simulation::list_skin() const {
-  // dh = nu (2 Vmax n_s dt) (§2.5). Before any step (or after restore) there is
-  // no dt yet: use eq. 7 without forces or viscosity, CFL h / c0, and at least
-  // the speed that free fall reaches over the list's life, g n_s dt (a flow
-  // starting at rest has Vmax = 0, which would give a list with no skin).
-  const double ns = static_cast<double>(config_.list_steps);
-  const bool first = dt_ <= 0;
-  const double dt = first ? phys_.cfl * phys_.h() / phys_.c0 : dt_;
-  const double vmax = first ? std::max(max_speed_, phys_.gravity * ns * dt) : max_speed_;
-  return config_.effective_skin_factor() * 2.0 * vmax * ns * dt;
-}
-
-void Simulation::build_verlet_list() {
-  skin_ = list_skin();
-  const double cell = 2.0 * phys_.h() + skin_;  // 2H = 2h + dh
-  const bool reorder = config_.reorder && stats_.builds % static_cast<std::uint64_t>(config_.reorder_every) == 0;
-  grid_->build(ps_, cell, reorder);
-  verlet_.build(*grid_, ps_, cell * cell, config_.threads);
-  if (config_.list == ListKind::vlx) {  // positions after any reordering: indices match the list's
-    x_build_.assign(ps_.x.begin(), ps_.x.end());
-    y_build_.assign(ps_.y.begin(), ps_.y.end());
-    z_build_.assign(ps_.z.begin(), ps_.z.end());
-  }
-  list_valid_ = true;
-  list_age_ = 0;
-  lost_at_build_ = lost_;
-  ++stats_.builds;
-  stats_.skin = skin_;
-  stats_.list_pairs = verlet_.pairs();
-  stats_.list_bytes = verlet_.list_bytes();
-  stats_.max_list_bytes = std::max(stats_.max_list_bytes, stats_.list_bytes);
+  policy_.prepare(ps_, *grid_, verlet_, flow_state(), stats_);
 }
 
 std::uint64_t Simulation::count_list_misses() {
   if (config_.list == ListKind::cll) return 0;
-  if (!verify_grid_)
-    verify_grid_ = make_particle_grid();
-  verify_grid_->build(ps_, 2.0 * phys_.h(), false);
-  const std::uint64_t truth = verify_cll_.for_each_pair(*verify_grid_, ps_, no_ops_, phys_.kernel.support2).interactions;
-  // Every listed pair that passes the 2h filter is a true pair and is listed
-  // once, so the shortfall is exactly the pairs the list misses.
-  const std::uint64_t found = verlet_.for_each_pair(ps_, no_ops_, phys_.kernel.support2).interactions;
-  if (found > truth)
-    throw std::logic_error("Verlet list yields " + std::to_string(found) + " pairs, more than the " +
-                           std::to_string(truth) + " pairs within 2h: a pair is listed twice");
-  return truth - found;
+  if (!verify_grid_) verify_grid_ = make_particle_grid();
+  return policy_.count_misses(ps_, *verify_grid_, verlet_, phys_.h(), phys_.kernel.support2);
 }
 
 void Simulation::compute_forces() {
@@ -293,13 +239,13 @@ void Simulation::restore(const ParticleSet& state, double time, long steps, std:
   dt_ = 0;
   times_ = PhaseTimes{};
   stats_ = NeighbourStats{};
-  list_valid_ = neighbours_ready_ = false;  // indices and positions changed: Verlet lists are rebuilt
+  policy_.invalidate();  // indices and positions changed: Verlet lists are rebuilt
+  neighbours_ready_ = false;
 }
 
 std::size_t Simulation::neighbour_bytes() const {
   // Verlet lists add the list (offsets + indices) and VL_X's positions at the build.
-  return grid_->bytes() + verlet_.list_bytes() +
-         (x_build_.capacity() + y_build_.capacity() + z_build_.capacity()) * sizeof(double);
+  return grid_->bytes() + verlet_.list_bytes() + policy_.bytes();
 }
 
 double Simulation::total_mass() const {

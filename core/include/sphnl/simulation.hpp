@@ -1,7 +1,8 @@
 #pragma once
-// Simulation: one of each part (particle grid, pair source, pair kernel,
-// integrator) chosen at run time from a RunConfig, stepping the case and timing
-// the three phases of the paper's Table I on every step.
+// Simulation: the integrator of the case and the phase timing of the paper's
+// Table I. It holds one of each part chosen at run time from a RunConfig
+// (particle grid, pair source, pair kernel) and asks the RebuildPolicy once per
+// step whether the neighbour structures must be rebuilt.
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -9,8 +10,10 @@
 #include "sphnl/case.hpp"
 #include "sphnl/config.hpp"
 #include "sphnl/neighbours/cell_linked_list.hpp"
+#include "sphnl/neighbours/neighbour_stats.hpp"
 #include "sphnl/neighbours/pair_counts.hpp"
 #include "sphnl/neighbours/particle_grid.hpp"
+#include "sphnl/neighbours/rebuild_policy.hpp"
 #include "sphnl/neighbours/verlet_list.hpp"
 #include "sphnl/kgc.hpp"
 #include "sphnl/pair_kernel.hpp"
@@ -24,28 +27,6 @@ struct PhaseTimes {
   double force = 0;           // pair loops (KGC pre-pass included)
   double update = 0;          // time step, integration, equation of state
   double total() const { return neighbour_list + force + update; }
-};
-
-/// Counters of the neighbour search, summed over steps.
-struct NeighbourStats {
-  std::uint64_t builds = 0;          // grid/list builds (CLL: one per step)
-  std::uint64_t candidates = 0;      // candidate pairs tested in the main loop
-  std::uint64_t interactions = 0;    // pairs evaluated in the main loop
-  std::uint64_t max_steps_per_list = 0;
-  // Verlet lists (paper §2.5); all zero for the cell-linked list
-  std::uint64_t list_steps = 0;         // steps that used a list (sum of list lifetimes)
-  std::uint64_t forced_rebuilds = 0;    // builds forced because a particle went out (not by C / dh/2)
-  std::uint64_t list_pairs = 0;         // pairs stored in the current list
-  std::size_t list_bytes = 0;           // bytes of the current list (offsets + indices)
-  std::size_t max_list_bytes = 0;       // largest list_bytes seen
-  double skin = 0;                      // dh of the current list (m)
-  std::uint64_t vl_misses = 0;          // pairs with r < 2h missing from the list (verify_lists only)
-  std::uint64_t verified_steps = 0;     // steps checked by verify_lists
-  std::uint64_t kgc_fallbacks = 0;      // fluid particles whose L_a fell back to I (summed over steps)
-  /// Mean steps per list: lifetimes of the lists built (CLL: 1).
-  double mean_steps_per_list() const {
-    return builds ? static_cast<double>(list_steps ? list_steps : builds) / static_cast<double>(builds) : 0.0;
-  }
 };
 
 class Simulation {
@@ -89,17 +70,16 @@ class Simulation {
   /// run-time dispatch per pass); public for tests of pair sources.
   template <PairOperation Op>
   PairCounts for_each_pair(std::vector<Op>& ops);
-  /// Prepares the pair source for the current positions (phase 1): CLL grids
-  /// again; VL_C rebuilds every C = list_steps steps; VL_X rebuilds when a
-  /// particle has moved more than dh/2 since the build. step() calls it unless
-  /// it was already called since the last step (tests inspect the pairs first).
+  /// Prepares the pair source for the current positions (phase 1) as the
+  /// RebuildPolicy decides. step() calls it unless it was already called since
+  /// the last step (tests inspect the pairs first).
   void build_neighbours();
   /// Counts the pairs with r < 2h that the current Verlet list misses, by a
   /// cell-linked search of the same positions (verify_lists; 0 for CLL).
   std::uint64_t count_list_misses();
   /// dh of VL_C / VL_X for a list that should live `list_steps` steps
   /// (paper §2.5): nu 2 Vmax n_s dt, with Vmax and dt of the last step.
-  double list_skin() const;
+  double list_skin() const { return policy_.skin(flow_state()); }
 
  private:
   void init();
@@ -107,7 +87,8 @@ class Simulation {
   GridderOptions gridder_options() const;
   /// A ParticleGrid over this case's domain (and periodic y) with the configured order and gridder.
   std::unique_ptr<ParticleGrid> make_particle_grid() const;
-  void build_verlet_list();
+  /// The flow as the rebuild policy sees it at the start of a step.
+  FlowState flow_state() const;
   void compute_forces();
   void update(double dt);
   double time_step() const;
@@ -119,20 +100,9 @@ class Simulation {
   std::unique_ptr<ParticleGrid> grid_;
   CellLinkedList cll_;
   VerletList verlet_;
-  // Verlet-list state: positions at the build (VL_X), steps the list has served
-  std::vector<double> x_build_, y_build_, z_build_;
-  bool list_valid_ = false, neighbours_ready_ = false;
-  std::uint64_t list_age_ = 0;
-  std::size_t lost_at_build_ = 0;
-  double skin_ = 0;
-  // verify_lists: a cell-linked search with cells of 2h, never reordering
-  std::unique_ptr<ParticleGrid> verify_grid_;
-  CellLinkedList verify_cll_;
-  struct NoOp {
-    static constexpr unsigned kFields = fields::position;
-    void interact(const ParticleView&, std::uint32_t, const std::uint32_t*, int) {}
-  };
-  std::vector<NoOp> no_ops_;
+  RebuildPolicy policy_;
+  bool neighbours_ready_ = false;
+  std::unique_ptr<ParticleGrid> verify_grid_;  // verify_lists: the miss check's own grid
   std::vector<KgcMatrixOp> kgc_ops_;
   std::vector<ForceOp<false>> force_ops_;
   std::vector<ForceOp<true>> force_ops_kgc_;
