@@ -1,6 +1,6 @@
 // The `search` family: `sphnl neighbours` as a neighbour-search library. Full
 // neighbour lists (every j != i with r < R) of a simple cubic lattice of n
-// points with R = 2.6 spacings, the layout of the speed target.
+// points with R = 2.6 spacings, the layout the search's speed is quoted for (docs/FINDINGS.md).
 #include <cmath>
 
 #include "bench_common.hpp"

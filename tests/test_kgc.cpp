@@ -1,4 +1,4 @@
-// Kernel gradient correction (Bonet & Lok 1999; PHYSICS.md): with L_a = M_a^-1
+// Kernel gradient correction (Bonet & Lok 1999; docs/PHYSICS.md): with L_a = M_a^-1
 // the SPH gradient of a linear field is exact, also where the kernel support is
 // cut by a free surface; in the bulk (M ~ I) results stay close to the
 // uncorrected ones.
@@ -119,7 +119,7 @@ void expect_exact_linear_gradient(ListKind list) {
 }  // namespace
 
 TEST(Kgc, BulkMatrixIsIdentityOnTheBccLattice) {
-  // PHYSICS.md test 2: with a full kernel support, M = I within 5e-3.
+  // docs/PHYSICS.md test 2: with a full kernel support, M = I within 5e-3.
   const double dx = 0.01;
   const PhysicsParams phys = PhysicsParams::make(1.5 * dx, 0.3, 10, 0.1, 0.5, 0.3, false);
   RunConfig cfg;
@@ -149,7 +149,7 @@ TEST(Kgc, LinearGradientIsExactNearAFreeSurfaceWithVerletList) { expect_exact_li
 namespace {
 
 /// Largest relative change |a_kgc - a| / |a| of the pair accelerations over
-/// bulk fluid particles (full kernel support: |M_a - I| < 5e-3, PHYSICS.md),
+/// bulk fluid particles (full kernel support: |M_a - I| < 5e-3, docs/PHYSICS.md),
 /// after one step of each simulation from the same state.
 double worst_bulk_change(const Simulation& plain, const Simulation& corrected, std::size_t& bulk) {
   const ParticleSet &pa = plain.particles(), &pb = corrected.particles();

@@ -1,4 +1,4 @@
-// The physics tests of PHYSICS.md (items 1-3 and 5-7): kernel, lattice sums,
+// The physics tests of docs/PHYSICS.md (items 1-3 and 5-7): kernel, lattice sums,
 // constants, symmetry, integrator, mass and density; plus the pair set of the
 // cell-linked list against an O(N^2) brute force on the dam break.
 #include <gtest/gtest.h>
@@ -27,7 +27,7 @@ using namespace sphnl::test;
 
 namespace {
 
-constexpr double kHcoef = 0.866025;  // h = kHcoef sqrt(3) dx = 1.5 dx (PHYSICS.md)
+constexpr double kHcoef = 0.866025;  // h = kHcoef sqrt(3) dx = 1.5 dx (docs/PHYSICS.md)
 
 /// Offsets of the BCC lattice (spacing dx) from one of its nodes, within 2h.
 std::vector<std::array<double, 3>> bcc_offsets(double dx, double h) {

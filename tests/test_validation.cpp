@@ -1,6 +1,6 @@
-// Validation against hydrostatics and experiment (PHYSICS.md items 8 and 9).
+// Validation against hydrostatics and experiment (docs/PHYSICS.md items 8 and 9).
 // Both run at coarse resolutions so that each takes about a minute on two
-// threads (the issue allows it); the tolerances are the ones PHYSICS.md states.
+// threads; the tolerances are the ones docs/PHYSICS.md states.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -66,7 +66,7 @@ Simulation make_sim(const CaseGeometry& g, double dx, int threads) {
 
 }  // namespace
 
-// PHYSICS.md item 8: a tank of water at rest stays at rest; the time-averaged
+// docs/PHYSICS.md item 8: a tank of water at rest stays at rest; the time-averaged
 // pressure away from walls and surface is hydrostatic.
 //
 // What is measured, and why (each choice checked against the run):
@@ -84,12 +84,12 @@ Simulation make_sim(const CaseGeometry& g, double dx, int threads) {
 //   particle layer plus dx/4 (on the BCC lattice each layer carries a slab
 //   dx/2 thick; the kernel sum sum_b V_b W is 1/2 exactly there), averaged over
 //   the samples. The fluid settles by about 3 mm first: the walls start at rho0
-//   (P = 0, PHYSICS.md) while the fluid beside them is at rho0 g H.
+//   (P = 0, docs/PHYSICS.md) while the fluid beside them is at rho0 g H.
 // - That start is an acoustic transient (whole-column fall, up to 0.29 m/s at
 //   t = 0.04 s, decaying below 0.05 m/s by t = 0.6 s): max |v| < 0.05 sqrt(gH)
 //   is a steady-state criterion and is checked over the second half, like the
 //   time average. The whole-run maximum is printed.
-// Geometry: PHYSICS.md's 0.4 x 0.2 x 0.3 m for 1.5 s, at dx = 0.02 instead of
+// Geometry: docs/PHYSICS.md's 0.4 x 0.2 x 0.3 m for 1.5 s, at dx = 0.02 instead of
 // 0.01 (8168 particles, ~3100 steps, about a minute on two threads); the gauges
 // sit >= 3h = 0.09 m from walls, floor and surface.
 TEST(Validation, HydrostaticTank) {
@@ -182,7 +182,7 @@ TEST(Validation, HydrostaticTank) {
               worst, p_particle_min, p_particle_max);
 }
 
-// PHYSICS.md item 9: collapse of a water column of width a and height 2a in a
+// docs/PHYSICS.md item 9: collapse of a water column of width a and height 2a in a
 // narrow slab, front Z = x/a (foremost fluid particle) against Martin & Moyce
 // (1952) within 15 % for 0.5 <= T = t sqrt(2g/a) <= 3.
 //
@@ -230,9 +230,9 @@ void check_martin_moyce(int dx_divisor) {
 }
 }  // namespace
 
-// dx = a/20 by default: the issue allows a coarse resolution for the test's
-// time budget (~1 min on 2 cores; a/40, PHYSICS.md's, is 16 times the work).
-// SPHNL_MARTIN_MOYCE_DX_DIVISOR=40 runs PHYSICS.md's resolution.
+// dx = a/20 by default: a coarse resolution for the test suite's
+// time budget (~1 min on 2 cores; a/40, docs/PHYSICS.md's, is 16 times the work).
+// SPHNL_MARTIN_MOYCE_DX_DIVISOR=40 runs docs/PHYSICS.md's resolution.
 TEST(Validation, MartinMoyceDamBreakFront) {
   const char* divisor = std::getenv("SPHNL_MARTIN_MOYCE_DX_DIVISOR");
   const int n = divisor ? std::atoi(divisor) : 20;

@@ -45,7 +45,7 @@ REPO = pathlib.Path(__file__).resolve().parents[1]
 EXPERIMENT = "experiments/compare.json"
 BENCH_TARGET = "sphnl_bench"
 BENCH_RELPATH = pathlib.Path("benchmarks") / BENCH_TARGET
-# The function the lead's bench marks noinline and runs exactly one timed
+# The function the benchmark binary marks noinline and runs exactly one timed
 # window in; callgrind counts only inside it (docs/CONTRACTS.md §2).
 TIMED_FUNCTION = "sphnl::bench::timed_window*"
 # valgrind 3.19 dies on AVX-512 (SIGILL); x86-64-v3 is AVX2 + FMA.

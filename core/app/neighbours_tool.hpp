@@ -1,6 +1,6 @@
 #pragma once
 // `sphnl neighbours`: neighbour search on any point cloud with a chosen
-// gridder, cell order and reorder setting (DESIGN.md "Interfaces"):
+// gridder, cell order and reorder setting (docs/DESIGN.md, "The sphnl tool"):
 //
 //   sphnl neighbours --input points.csv --radius R [--gridder A|B|C|D]
 //       [--cell-order sort_x|sort_xy|sort_xyz|hilbert] [--reorder 0|1]

@@ -12,7 +12,7 @@ namespace sphnl {
 
 /// Options of `sphnl run` after parsing the command line.
 struct RunOptions {
-  std::string config_file;            // empty: defaults of DESIGN.md
+  std::string config_file;            // empty: the RunConfig defaults (config.hpp)
   std::vector<std::string> overrides; // `key=value`, applied in order after the file
   std::string out_dir = "sphnl-out";
   bool quiet = false;                 // no progress line

@@ -1,5 +1,7 @@
 #include "sphnl/particles.hpp"
 
+#include "sphnl/permutation.hpp"
+
 #include <algorithm>
 
 namespace sphnl {
@@ -34,13 +36,11 @@ void ParticleSet::clear_accumulators() {
 void ParticleSet::permute(std::span<const std::uint32_t> order, std::vector<double>& scratch,
                           std::vector<std::uint32_t>& scratch_u32) {
   const std::size_t n = order.size();
-  scratch.resize(n);
-  scratch_u32.resize(n);
   for_each_f64_state(*this, [&](std::vector<double>& v) {
-    for (std::size_t k = 0; k < n; ++k) scratch[k] = v[order[k]];
+    gather_by<double>(v, order, scratch);
     v.swap(scratch);
   });
-  for (std::size_t k = 0; k < n; ++k) scratch_u32[k] = id[order[k]];
+  gather_by<std::uint32_t>(id, order, scratch_u32);
   id.swap(scratch_u32);
   // type is one byte per particle: permute through the u32 scratch
   for (std::size_t k = 0; k < n; ++k) scratch_u32[k] = static_cast<std::uint32_t>(type[order[k]]);

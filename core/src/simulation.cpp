@@ -146,7 +146,7 @@ double Simulation::time_step() const {
 }
 
 void Simulation::update(double dt) {
-  // Verlet (PHYSICS.md), with an Euler step every `euler_every` steps (the
+  // Verlet (docs/PHYSICS.md), with an Euler step every `euler_every` steps (the
   // first step included, which also starts the v^{n-1} history cleanly).
   const bool euler = steps_ % config_.euler_every == 0;
   const std::size_t n = ps_.size();

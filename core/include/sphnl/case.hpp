@@ -36,7 +36,7 @@ struct Case {
   std::size_t n_fluid = 0, n_boundary = 0;
 };
 
-/// h = h_coefficient * sqrt(3) dx (PHYSICS.md). Mass: rho dx^3 / 2 on BCC
+/// h = h_coefficient * sqrt(3) dx (docs/PHYSICS.md). Mass: rho dx^3 / 2 on BCC
 /// (two particles per dx^3), rho dx^3 on the cubic lattice.
 Case make_case(const CaseGeometry& g, double dx, Lattice lattice, double h_coefficient, const PhysicsParams& phys);
 /// Fluid and boundary particles make_case would create, without creating them.

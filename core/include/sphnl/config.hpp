@@ -1,6 +1,7 @@
 #pragma once
 // RunConfig: every run-time choice of a simulation, with the key names of the
-// table in DESIGN.md (JSON file and `--set key=value` use the same names).
+// table in docs/DESIGN.md, "Configuration keys" (JSON file and `--set
+// key=value` use the same names).
 #include <cstdint>
 #include <stdexcept>
 #include <string>
@@ -25,7 +26,7 @@ struct RunConfig {
   long steps = 0;
   double end_time = 0.5;
   double output_interval = 0.05;  // simulated seconds between snapshots; 0 = final only
-  // physics (PHYSICS.md)
+  // physics (docs/PHYSICS.md)
   double h_coefficient = 0.866025;
   double cfl = 0.3;
   int euler_every = 50;

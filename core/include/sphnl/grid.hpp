@@ -40,6 +40,14 @@ struct CellGrid {
   /// neighbour (or one neighbour twice) through the seam.
   static constexpr int kMinPeriodicCells = 3;
   long num_cells() const { return static_cast<long>(n[0]) * n[1] * n[2]; }
+  /// Cells a grid of side `size` over `b` would have (non-periodic), counted in
+  /// double so that a side far below the box cannot overflow: lets a caller
+  /// choose the side before building the grid.
+  static double cells_needed(const Box& b, double size) {
+    double cells = 1;
+    for (int d = 0; d < 3; ++d) cells *= std::max(1.0, std::ceil((b.hi[d] - b.lo[d]) / size));
+    return cells;
+  }
   /// Cell coordinate of a position along axis d, clamped into the grid (the
   /// caller guarantees the position is inside the box).
   int coord(double v, int d) const {

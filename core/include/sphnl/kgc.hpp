@@ -1,5 +1,5 @@
 #pragma once
-// Kernel gradient correction (KGC, Bonet & Lok 1999; PHYSICS.md): the second
+// Kernel gradient correction (KGC, Bonet & Lok 1999; docs/PHYSICS.md): the second
 // loop over the pairs of a step that paper §3.4 / Fig. 17 measures. A pre-pass
 // accumulates M_a = sum_b V_b (r_b - r_a) (x) grad_a W_ab over the same pairs as
 // the main loop; L_a = M_a^-1 then corrects grad_a W_ab in ForceOp<true>.
@@ -51,7 +51,7 @@ static_assert(PairOperation<KgcMatrixOp>);
 void clear_kgc_matrices(ParticleSet& ps);
 
 /// L_a = M_a^-1 for fluid particles whose M_a is well conditioned
-/// (|det M_a| > 0.01 and every |M_kk| > 0.25, PHYSICS.md); L_a = I otherwise and
+/// (|det M_a| > 0.01 and every |M_kk| > 0.25, docs/PHYSICS.md); L_a = I otherwise and
 /// for boundary and out particles. Returns how many fluid particles fell back to I.
 std::size_t invert_kgc_matrices(ParticleSet& ps);
 

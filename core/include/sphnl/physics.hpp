@@ -1,5 +1,5 @@
 #pragma once
-// The physics of SPHysics' formulation (paper §2.1, PHYSICS.md): constants,
+// The physics of SPHysics' formulation (paper §2.1, docs/PHYSICS.md): constants,
 // the equation of state (eq. 5) and per-particle derived quantities.
 #include <cmath>
 #include <cstddef>

@@ -1,106 +1,18 @@
 #include "sphnl/neighbours/neighbour_search.hpp"
 
-#include <immintrin.h>
-
 #include <algorithm>
-#include <array>
-#include <bit>
 #include <cfloat>
-#include <cstdlib>
-#include <new>
-#include <cstring>
 #include <stdexcept>
 #include <string>
 
+#include "sphnl/neighbours/pair_filter.hpp"
+#include "sphnl/neighbours/stencil.hpp"
+#include "sphnl/permutation.hpp"
 #include "sphnl/timer.hpp"
 
 namespace sphnl {
 
 namespace {
-
-/// Entries a SIMD compaction may write past the last survivor.
-constexpr std::uint64_t kStoreSlack = 16;
-
-#if defined(__AVX2__) && defined(__FMA__) && !(defined(__AVX512F__) && defined(__AVX512VL__))
-/// For an 8-bit survivor mask, the lane indices of the survivors packed to the
-/// front (a vpermd control), as bytes.
-constexpr std::array<std::uint64_t, 256> make_compress_table() {
-  std::array<std::uint64_t, 256> t{};
-  for (unsigned m = 0; m < 256; ++m) {
-    std::uint64_t v = 0;
-    int k = 0;
-    for (unsigned lane = 0; lane < 8; ++lane)
-      if (m & (1u << lane)) v |= static_cast<std::uint64_t>(lane) << (8 * k++);
-    t[m] = v;
-  }
-  return t;
-}
-constexpr auto kCompressTable = make_compress_table();
-#endif
-
-/// Tests candidates 0..count-1 (coordinates x, y, z; input indices id) against
-/// the point (xi, yi, zi) and appends the id of every one with squared distance
-/// < r2max, except candidate `self` (the point itself; ~0u when absent), to
-/// `out`. Returns the new end; `out` needs kStoreSlack entries of room beyond
-/// the survivors.
-inline std::uint32_t* append_within(double xi, double yi, double zi, const double* __restrict x,
-                                    const double* __restrict y, const double* __restrict z,
-                                    const std::uint32_t* __restrict id, std::uint32_t count, std::uint32_t self,
-                                    double r2max, std::uint32_t* __restrict out) {
-#if defined(__AVX512F__) && defined(__AVX512VL__)
-  const __m512d vx = _mm512_set1_pd(xi), vy = _mm512_set1_pd(yi), vz = _mm512_set1_pd(zi),
-                vr = _mm512_set1_pd(r2max);
-  for (std::uint32_t j = 0; j < count; j += 8) {
-    const std::uint32_t left = count - j;
-    const __mmask8 lanes = left >= 8 ? static_cast<__mmask8>(0xFF) : static_cast<__mmask8>((1u << left) - 1u);
-    const __m512d dx = _mm512_sub_pd(vx, _mm512_maskz_loadu_pd(lanes, x + j));
-    const __m512d dy = _mm512_sub_pd(vy, _mm512_maskz_loadu_pd(lanes, y + j));
-    const __m512d dz = _mm512_sub_pd(vz, _mm512_maskz_loadu_pd(lanes, z + j));
-    // Same rounding as distance2(): fma(dz, dz, fma(dy, dy, dx * dx)).
-    const __m512d d2 = _mm512_fmadd_pd(dz, dz, _mm512_fmadd_pd(dy, dy, _mm512_mul_pd(dx, dx)));
-    unsigned m = _mm512_mask_cmp_pd_mask(lanes, d2, vr, _CMP_LT_OQ);
-    if (self - j < 8u) m &= ~(1u << (self - j));
-    const __m256i ids = _mm256_maskz_loadu_epi32(lanes, id + j);
-    // Compress in a register and store whole (a compress-store to memory is
-    // microcoded and slow on some cores); the slack absorbs the extra lanes.
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out), _mm256_maskz_compress_epi32(static_cast<__mmask8>(m), ids));
-    out += std::popcount(m);
-  }
-  return out;
-#elif defined(__AVX2__) && defined(__FMA__)
-  const __m256d vx = _mm256_set1_pd(xi), vy = _mm256_set1_pd(yi), vz = _mm256_set1_pd(zi), vr = _mm256_set1_pd(r2max);
-  std::uint32_t j = 0;
-  for (; j + 8 <= count; j += 8) {
-    unsigned m = 0;
-    for (unsigned half = 0; half < 2; ++half) {
-      const std::uint32_t k = j + 4 * half;
-      const __m256d dx = _mm256_sub_pd(vx, _mm256_loadu_pd(x + k));
-      const __m256d dy = _mm256_sub_pd(vy, _mm256_loadu_pd(y + k));
-      const __m256d dz = _mm256_sub_pd(vz, _mm256_loadu_pd(z + k));
-      const __m256d d2 = _mm256_fmadd_pd(dz, dz, _mm256_fmadd_pd(dy, dy, _mm256_mul_pd(dx, dx)));
-      m |= static_cast<unsigned>(_mm256_movemask_pd(_mm256_cmp_pd(d2, vr, _CMP_LT_OQ))) << (4 * half);
-    }
-    if (self - j < 8u) m &= ~(1u << (self - j));
-    const __m256i ids = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(id + j));
-    const __m256i perm = _mm256_cvtepu8_epi32(_mm_cvtsi64_si128(static_cast<long long>(kCompressTable[m])));
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out), _mm256_permutevar8x32_epi32(ids, perm));
-    out += std::popcount(m);
-  }
-  for (; j < count; ++j) {
-    const double d2 = distance2(xi - x[j], yi - y[j], zi - z[j]);
-    *out = id[j];
-    out += (d2 < r2max) & (j != self);
-  }
-  return out;
-#else
-  for (std::uint32_t j = 0; j < count; ++j) {
-    const double d2 = distance2(xi - x[j], yi - y[j], zi - z[j]);
-    *out = id[j];  // branch-free compaction
-    out += (d2 < r2max) & (j != self);
-  }
-  return out;
-#endif
-}
 
 struct Range {
   std::uint32_t begin, end;
@@ -110,23 +22,16 @@ struct Range {
 
 // ------------------------------------------------------------- NeighbourLists
 
-void NeighbourLists::FreeEntries::operator()(std::uint32_t* p) const { std::free(p); }
-
 std::uint32_t* NeighbourLists::reserve(std::uint64_t used, std::uint64_t more, std::size_t rows_done) {
-  const std::uint64_t need = used + more + kStoreSlack;
-  if (need <= capacity_) return entries_.get();
+  const std::uint64_t need = used + more + kFilterSlack;
+  const std::uint64_t capacity = entries_.capacity();
+  if (need <= capacity) return entries_.data();
   // Grow to the larger of 1.5x and the size the rows done so far project for
   // all rows, so a search of N points reallocates a few times at most.
   const double projected =
       rows_done ? 1.15 * static_cast<double>(used) * static_cast<double>(point_.size()) / static_cast<double>(rows_done) : 0.0;
-  std::uint64_t cap = std::max({need, capacity_ + capacity_ / 2, static_cast<std::uint64_t>(projected)});
-  // Uninitialised (no zero-fill): the first touch of each page is the cost.
-  auto* p = static_cast<std::uint32_t*>(std::malloc(cap * sizeof(std::uint32_t)));
-  if (!p) throw std::bad_alloc();
-  if (used) std::memcpy(p, entries_.get(), used * sizeof(std::uint32_t));
-  entries_.reset(p);
-  capacity_ = cap;
-  return p;
+  const std::uint64_t cap = std::max({need, capacity + capacity / 2, static_cast<std::uint64_t>(projected)});
+  return entries_.grow(cap, used);
 }
 
 void NeighbourLists::counts(std::vector<std::uint32_t>& out) const {
@@ -180,12 +85,7 @@ void NeighbourSearch::build(std::span<const double> x, std::span<const double> y
   // far more cells than points.
   double side = radius * (1 + 1e-9) + 16 * DBL_EPSILON * max_abs;
   const double max_cells = std::max(64.0, 2.0 * static_cast<double>(n));
-  for (;;) {
-    double cells = 1;
-    for (int d = 0; d < 3; ++d) cells *= std::max(1.0, std::ceil((box.hi[d] - box.lo[d]) / side));
-    if (cells <= max_cells) break;
-    side *= 1.25;
-  }
+  while (CellGrid::cells_needed(box, side) > max_cells) side *= 1.25;
   bool same_grid = side == grid_.cell_size;
   for (int d = 0; d < 3; ++d) same_grid = same_grid && box.lo[d] == grid_.box.lo[d] && box.hi[d] == grid_.box.hi[d];
   if (!same_grid) {
@@ -195,8 +95,7 @@ void NeighbourSearch::build(std::span<const double> x, std::span<const double> y
 
   // Cell index of every point (§2.4), then particles in cells (§2.3).
   keys_.resize(n);
-  for (std::size_t i = 0; i < n; ++i)
-    keys_[i] = order_->key(grid_.coord(x[i], 0), grid_.coord(y[i], 1), grid_.coord(z[i], 2));
+  order_->compute_keys(grid_, x, y, z, nullptr, keys_);
   const std::uint32_t num_keys = order_->num_keys();
   gridder_->build(keys_, num_keys);
 
@@ -204,15 +103,9 @@ void NeighbourSearch::build(std::span<const double> x, std::span<const double> y
     // Reordering: coordinates permuted into cell order; then only the first
     // particle of each cell needs to be known (§2.4).
     gridder_->cell_order_permutation(permutation_);
-    xs_.resize(n);
-    ys_.resize(n);
-    zs_.resize(n);
-    for (std::size_t k = 0; k < n; ++k) {
-      const std::uint32_t i = permutation_[k];
-      xs_[k] = x[i];
-      ys_[k] = y[i];
-      zs_[k] = z[i];
-    }
+    gather_by<double>(x, permutation_, xs_);
+    gather_by<double>(y, permutation_, ys_);
+    gather_by<double>(z, permutation_, zs_);
     cell_start_.resize(std::size_t{num_keys} + 1);
     std::uint32_t next_key = 0;
     for (std::size_t k = 0; k < n; ++k) {
@@ -221,7 +114,7 @@ void NeighbourSearch::build(std::span<const double> x, std::span<const double> y
     }
     while (next_key <= num_keys) cell_start_[next_key++] = static_cast<std::uint32_t>(n);
   } else {
-    const std::size_t room = 27 * std::size_t{gridder_->max_cell_count()} + kStoreSlack;
+    const std::size_t room = 27 * std::size_t{gridder_->max_cell_count()} + kFilterSlack;
     if (gather_index_.size() < room) {
       gather_index_.resize(room);
       gx_.resize(room);
@@ -275,28 +168,21 @@ void NeighbourSearch::search_sorted(double radius2, NeighbourLists& out) {
   for (std::uint32_t key = 0; key < num_keys; ++key) {
     const std::uint32_t b = start[key], e = start[key + 1];
     if (b == e) continue;
-    const std::uint64_t c = coords[key];
-    const auto [cx, cy, cz] = CellOrder::unpack_coords(c);
     // The 27 cells as runs of consecutive sorted points; cells adjacent in key
     // order merge (the 3 cells along x of sort_x are one run).
     int nr = 0;
     std::uint64_t candidates = 0;
-    for (int dz = -1; dz <= 1; ++dz)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-          const int nx = cx + dx, ny = cy + dy, nz = cz + dz;
-          if (nx < 0 || ny < 0 || nz < 0 || nx >= grid_.n[0] || ny >= grid_.n[1] || nz >= grid_.n[2]) continue;
-          const std::uint32_t k = order_->key(nx, ny, nz);
-          const std::uint32_t rb = start[k], re = start[k + 1];
-          if (rb == re) continue;
-          candidates += re - rb;
-          if (nr > 0 && ranges[nr - 1].end == rb)
-            ranges[nr - 1].end = re;
-          else if (nr > 0 && ranges[nr - 1].begin == re)
-            ranges[nr - 1].begin = rb;
-          else
-            ranges[nr++] = {rb, re};
-        }
+    for_each_stencil_cell(grid_, *order_, CellOrder::unpack_coords(coords[key]), kFullStencil, [&](std::uint32_t k, double) {
+      const std::uint32_t rb = start[k], re = start[k + 1];
+      if (rb == re) return;
+      candidates += re - rb;
+      if (nr > 0 && ranges[nr - 1].end == rb)
+        ranges[nr - 1].end = re;
+      else if (nr > 0 && ranges[nr - 1].begin == re)
+        ranges[nr - 1].begin = rb;
+      else
+        ranges[nr++] = {rb, re};
+    });
     std::uint32_t* base = out.reserve(used, std::uint64_t{e - b} * candidates, b);
     for (std::uint32_t i = b; i < e; ++i) {
       std::uint32_t* w = base + used;
@@ -330,19 +216,13 @@ void NeighbourSearch::search_gathered(std::span<const double> xin, std::span<con
     if (c == CellOrder::kNoCellCoords) continue;
     const std::uint32_t n_home = gridder.gather_cell(key, idx);
     if (n_home == 0) continue;
-    const auto [cx, cy, cz] = CellOrder::unpack_coords(c);
     // The home cell first, then its 26 neighbours, gathered into contiguous
     // buffers: particle data stay in input order, so this is where scattered
     // memory is read (what reordering removes).
     std::uint32_t total = n_home;
-    for (int dz = -1; dz <= 1; ++dz)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-          if ((dx | dy | dz) == 0) continue;
-          const int nx = cx + dx, ny = cy + dy, nz = cz + dz;
-          if (nx < 0 || ny < 0 || nz < 0 || nx >= grid_.n[0] || ny >= grid_.n[1] || nz >= grid_.n[2]) continue;
-          total += gridder.gather_cell(order_->key(nx, ny, nz), idx + total);
-        }
+    for_each_stencil_cell(grid_, *order_, CellOrder::unpack_coords(c), kFullStencil, [&](std::uint32_t k, double) {
+      if (k != key) total += gridder.gather_cell(k, idx + total);
+    });
     for (std::uint32_t k = 0; k < total; ++k) {
       x[k] = xin[idx[k]];
       y[k] = yin[idx[k]];

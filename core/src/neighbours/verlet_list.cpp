@@ -9,14 +9,9 @@
 namespace sphnl {
 
 std::uint32_t* VerletList::IndexBuffer::room(std::size_t more) {
-  if (size + more > capacity) {
-    const std::size_t grown = std::max(size + more, capacity + capacity / 2 + 1024);
-    std::unique_ptr<std::uint32_t[]> bigger(new std::uint32_t[grown]);  // not value-initialised
-    if (size) std::copy(data.get(), data.get() + size, bigger.get());
-    data.swap(bigger);
-    capacity = grown;
-  }
-  return data.get() + size;
+  if (size + more > data.capacity())
+    data.grow(std::max(size + more, data.capacity() + data.capacity() / 2 + 1024), size);
+  return data.data() + size;
 }
 
 void VerletList::build(const ParticleGrid& pg, ParticleSet& ps, double list_radius2, int threads) {
@@ -57,7 +52,7 @@ void VerletList::build(const ParticleGrid& pg, ParticleSet& ps, double list_radi
     neighbours_.size = 0;
     std::uint32_t* dst = neighbours_.room(pairs);
     for (int t = 0; t < threads; ++t)
-      dst = std::copy(chunks_[t].neighbours.data.get(), chunks_[t].neighbours.data.get() + chunks_[t].neighbours.size, dst);
+      dst = std::copy(chunks_[t].neighbours.data.data(), chunks_[t].neighbours.data.data() + chunks_[t].neighbours.size, dst);
     neighbours_.size = pairs;
   }
   offsets_.resize(n + 1);
@@ -118,7 +113,7 @@ std::size_t VerletList::list_bytes() const {
 std::size_t VerletList::bytes() const {
   std::size_t b = list_bytes() + sweep_.bytes() + visited_.capacity();
   for (const auto& c : chunks_)
-    b += (c.neighbours.capacity + c.rows.capacity() + c.counts.capacity()) * sizeof(std::uint32_t);
+    b += (c.neighbours.data.capacity() + c.rows.capacity() + c.counts.capacity()) * sizeof(std::uint32_t);
   for (const auto& s : scratch_) {
     b += s.survivors.capacity() * sizeof(std::uint32_t) + s.private_acc.bytes();
   }

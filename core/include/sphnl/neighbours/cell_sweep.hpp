@@ -21,17 +21,12 @@
 #include "sphnl/gridders/gridder.hpp"
 #include "sphnl/neighbours/cell_buffer.hpp"
 #include "sphnl/neighbours/pair_filter.hpp"
+#include "sphnl/neighbours/stencil.hpp"
 #include "sphnl/neighbours/thread_accumulators.hpp"
 #include "sphnl/orderings/cell_order.hpp"
 #include "sphnl/particles.hpp"
 
 namespace sphnl {
-
-/// The 13 cell offsets lexicographically after (0,0,0) in (dz, dy, dx).
-inline constexpr std::array<std::array<int, 3>, 13> kHalfStencil = {{
-    {1, 0, 0},  {-1, 1, 0}, {0, 1, 0},  {1, 1, 0},  {-1, -1, 1}, {0, -1, 1}, {1, -1, 1},
-    {-1, 0, 1}, {0, 0, 1},  {1, 0, 1},  {-1, 1, 1}, {0, 1, 1},   {1, 1, 1},
-}};
 
 class CellSweep {
  public:
@@ -54,7 +49,6 @@ class CellSweep {
     split_keys(order, gridder, ps, threads);
     const std::uint64_t* coords = order.key_coords().data();
     const unsigned outputs = mask & (fields::force_out | fields::kgc_m_out);
-    const bool periodic = grid.period_y > 0;
 #pragma omp parallel num_threads(threads)
     {
       const int t = omp_get_thread_num();
@@ -65,23 +59,14 @@ class CellSweep {
         if (c == CellOrder::kNoCellCoords) continue;
         const std::uint32_t n_home = gridder.gather_cell(key, idx);
         if (n_home == 0) continue;
-        const auto [cx, cy, cz] = CellOrder::unpack_coords(c);
         std::uint32_t total = n_home;
         int n_seam = 0;  // neighbour cells across a periodic seam: gathered range and y shift
         std::array<SeamCell, kHalfStencil.size()> seam;
-        for (const auto& o : kHalfStencil) {
-          const int nx = cx + o[0], nz = cz + o[2];
-          int ny = cy + o[1];
-          double shift = 0;
-          if (periodic && (ny < 0 || ny >= grid.n[1])) {  // the image across the seam
-            shift = ny < 0 ? -grid.period_y : grid.period_y;
-            ny -= ny < 0 ? -grid.n[1] : grid.n[1];
-          }
-          if (nx < 0 || ny < 0 || nx >= grid.n[0] || ny >= grid.n[1] || nz >= grid.n[2]) continue;
+        for_each_stencil_cell(grid, order, CellOrder::unpack_coords(c), kHalfStencil, [&](std::uint32_t k, double shift) {
           const std::uint32_t begin = total;
-          total += gridder.gather_cell(order.key(nx, ny, nz), idx + total);
+          total += gridder.gather_cell(k, idx + total);
           if (shift != 0 && total > begin) seam[n_seam++] = {begin, total, shift};
-        }
+        });
         s.buffer.gather(ps, idx, total, mask);
         for (int k = 0; k < n_seam; ++k) s.buffer.shift_y(seam[k].begin, seam[k].end, seam[k].shift);
         visit(t, s, n_home);

@@ -9,8 +9,12 @@
 // its own. With reorder on, the coordinates are permuted into cell order so the
 // candidates of a point are a few contiguous runs (3-cell runs along x for
 // sort_x); with reorder off, each home cell gathers its 27 cells through the
-// gridder into a small contiguous buffer. Either way one SIMD distance loop
-// tests the candidates and compacts the survivors straight into the CSR output.
+// gridder into a small contiguous buffer. Either way the distance filter of
+// pair_filter.hpp tests the candidates and compacts the survivors straight
+// into the CSR output. The grid, the cell keys, the gridders, the reordering
+// permutation, the stencil walk and the filter are those of the cell-linked
+// list and the Verlet lists; only the cell side (fitted to the cloud) and the
+// full 27-cell stencil are this search's own.
 #include <cmath>
 #include <cstdint>
 #include <memory>
@@ -19,21 +23,12 @@
 
 #include "sphnl/kinds.hpp"
 #include "sphnl/grid.hpp"
+#include "sphnl/neighbours/distance.hpp"
+#include "sphnl/neighbours/uninit_buffer.hpp"
 #include "sphnl/gridders/gridder.hpp"
 #include "sphnl/orderings/cell_order.hpp"
 
 namespace sphnl {
-
-/// The squared distance every search path and the brute-force oracle use, with
-/// the same rounding (fused multiply-adds where the target has them), so that
-/// all paths agree on pairs at exactly r = R.
-inline double distance2(double dx, double dy, double dz) {
-#if defined(__FMA__)
-  return std::fma(dz, dz, std::fma(dy, dy, dx * dx));
-#else
-  return dx * dx + dy * dy + dz * dz;
-#endif
-}
 
 struct SearchOptions {
   GridderKind gridder = GridderKind::B;
@@ -51,12 +46,12 @@ class NeighbourLists {
   std::uint64_t num_entries() const { return offsets_.empty() ? 0 : offsets_.back(); }
   std::uint32_t point(std::size_t r) const { return point_[r]; }
   std::span<const std::uint32_t> row(std::size_t r) const {
-    return {entries_.get() + offsets_[r], static_cast<std::size_t>(offsets_[r + 1] - offsets_[r])};
+    return {entries_.data() + offsets_[r], static_cast<std::size_t>(offsets_[r + 1] - offsets_[r])};
   }
   /// Neighbour count of every input point, in input order.
   void counts(std::vector<std::uint32_t>& out) const;
   std::size_t bytes() const {
-    return capacity_ * sizeof(std::uint32_t) + offsets_.capacity() * sizeof(std::uint64_t) +
+    return entries_.capacity() * sizeof(std::uint32_t) + offsets_.capacity() * sizeof(std::uint64_t) +
            point_.capacity() * sizeof(std::uint32_t);
   }
 
@@ -65,14 +60,9 @@ class NeighbourLists {
   /// Makes room for `more` entries past `used` (plus SIMD store slack), keeping
   /// the first `used`, once `rows_done` rows are written; never shrinks.
   std::uint32_t* reserve(std::uint64_t used, std::uint64_t more, std::size_t rows_done);
-  struct FreeEntries {
-    void operator()(std::uint32_t* p) const;
-  };
-
   std::vector<std::uint32_t> point_;
   std::vector<std::uint64_t> offsets_;
-  std::unique_ptr<std::uint32_t, FreeEntries> entries_;  // uninitialised: no zero-fill of ~N*70 entries
-  std::uint64_t capacity_ = 0;
+  UninitBuffer<std::uint32_t> entries_;
 };
 
 /// Seconds of the last run, split as `sphnl neighbours` reports them.

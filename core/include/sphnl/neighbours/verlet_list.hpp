@@ -25,6 +25,7 @@
 #include "sphnl/neighbours/pair_operation.hpp"
 #include "sphnl/neighbours/particle_grid.hpp"
 #include "sphnl/neighbours/thread_accumulators.hpp"
+#include "sphnl/neighbours/uninit_buffer.hpp"
 #include "sphnl/particle_view.hpp"
 
 namespace sphnl {
@@ -55,11 +56,10 @@ class VerletList {
   void prepare_loop(ParticleSet& ps, unsigned outputs, int threads);
   void reduce(ParticleSet& ps, unsigned outputs, int threads);
 
-  /// A growable array of indices that is never zero-filled: the build writes
-  /// up to a whole candidate range per particle and keeps only the survivors.
+  /// Indices appended row by row into an UninitBuffer.
   struct IndexBuffer {
-    std::unique_ptr<std::uint32_t[]> data;
-    std::size_t size = 0, capacity = 0;
+    UninitBuffer<std::uint32_t> data;
+    std::size_t size = 0;
     std::uint32_t* room(std::size_t more);  // pointer to `more` writable entries past size
   };
 
@@ -97,7 +97,7 @@ PairCounts VerletList::for_each_pair(ParticleSet& ps, std::vector<Op>& ops, doub
     std::uint32_t* survivors = s.survivors.data();
     PairCounts c;
     const std::uint32_t* off = offsets_.data();
-    const std::uint32_t* nb = neighbours_.data.get();
+    const std::uint32_t* nb = neighbours_.data.data();
     for (std::uint32_t r = s.begin; r < s.end; ++r) {
       const int n = static_cast<int>(off[r + 1] - off[r]);
       if (n == 0) continue;

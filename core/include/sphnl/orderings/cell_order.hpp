@@ -25,10 +25,16 @@ class CellOrder {
   std::uint32_t num_keys() const { return num_keys_; }
   /// Key of the cell at integer coordinates (all in range).
   virtual std::uint32_t key(int cx, int cy, int cz) const = 0;
-  /// Key of every particle's cell; kNoCell for particles that are `out`. The loop
-  /// lives in each ordering so the key computation inlines (its cost is the
-  /// "~100x" claim of Fig. 9).
-  virtual void compute_keys(const CellGrid& grid, const ParticleSet& ps, std::span<std::uint32_t> keys) const = 0;
+  /// Key of the cell of every point (x[i], y[i], z[i]) (all inside the grid's
+  /// box); kNoCell where `type` is given and type[i] is `out`. The loop lives
+  /// in each ordering so the key computation inlines (its cost is the "~100x"
+  /// claim of Fig. 9). The one key computation of every neighbour path.
+  virtual void compute_keys(const CellGrid& grid, std::span<const double> x, std::span<const double> y,
+                            std::span<const double> z, const ParticleType* type, std::span<std::uint32_t> keys) const = 0;
+  /// Keys of a particle set's particles (out particles get kNoCell).
+  void compute_keys(const CellGrid& grid, const ParticleSet& ps, std::span<std::uint32_t> keys) const {
+    compute_keys(grid, ps.x, ps.y, ps.z, ps.type.data(), keys);
+  }
   /// Integer coordinates of every key that is a real cell (packed cx | cy<<21 |
   /// cz<<42), kNoCellCoords for padding keys: lets pair sources sweep cells in
   /// key order without each ordering having to invert its key.
@@ -57,14 +63,19 @@ class CellOrder {
 
 std::unique_ptr<CellOrder> make_cell_order(CellOrderKind kind);
 
-/// Shared loop for compute_keys: applies an inlinable key function to every particle.
+/// Shared loop for compute_keys: applies an inlinable key function to every
+/// point; `type` null means every point is gridded.
 template <class KeyFn>
-void compute_keys_with(const CellGrid& grid, const ParticleSet& ps, std::span<std::uint32_t> keys, KeyFn key) {
-  const std::size_t n = ps.size();
-  const double* x = ps.x.data();
-  const double* y = ps.y.data();
-  const double* z = ps.z.data();
-  const ParticleType* type = ps.type.data();
+void compute_keys_with(const CellGrid& grid, std::span<const double> xs, std::span<const double> ys,
+                       std::span<const double> zs, const ParticleType* type, std::span<std::uint32_t> keys, KeyFn key) {
+  const std::size_t n = xs.size();
+  const double* x = xs.data();
+  const double* y = ys.data();
+  const double* z = zs.data();
+  if (type == nullptr) {
+    for (std::size_t i = 0; i < n; ++i) keys[i] = key(grid.coord(x[i], 0), grid.coord(y[i], 1), grid.coord(z[i], 2));
+    return;
+  }
   for (std::size_t i = 0; i < n; ++i) {
     keys[i] = type[i] == ParticleType::out
                   ? kNoCell
@@ -79,8 +90,10 @@ template <class Derived>
 class CellOrderWithKey : public CellOrder {
  public:
   std::uint32_t key(int cx, int cy, int cz) const final { return self().inline_key(cx, cy, cz); }
-  void compute_keys(const CellGrid& grid, const ParticleSet& ps, std::span<std::uint32_t> keys) const final {
-    compute_keys_with(grid, ps, keys, [this](int cx, int cy, int cz) { return self().inline_key(cx, cy, cz); });
+  using CellOrder::compute_keys;
+  void compute_keys(const CellGrid& grid, std::span<const double> x, std::span<const double> y,
+                    std::span<const double> z, const ParticleType* type, std::span<std::uint32_t> keys) const final {
+    compute_keys_with(grid, x, y, z, type, keys, [this](int cx, int cy, int cz) { return self().inline_key(cx, cy, cz); });
   }
 
  private:
