@@ -1,6 +1,6 @@
 #pragma once
 // RunConfig: every run-time choice of a simulation, with the key names of the
-// table in docs/DESIGN.md, "Configuration keys" (JSON file and `--set
+// table in README.md, "Configuration" (JSON file and `--set
 // key=value` use the same names).
 #include <cstdint>
 #include <stdexcept>
