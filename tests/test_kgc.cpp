@@ -28,8 +28,7 @@ struct LinearGradientOp {
     for (int p = 0; p < n; ++p) {
       const std::uint32_t j = js[p];
       const double dx = v.x[i] - v.x[j], dy = v.y[i] - v.y[j], dz = v.z[i] - v.z[j];
-      const double r = std::sqrt(dx * dx + dy * dy + dz * dz), q = r * k.inv_h, t = 2.0 - q;
-      const double f = (q <= 1.0 ? (k.c1 * q + k.d1 * q * q) : k.c2 * t * t) / r;
+      const double f = k.f(std::sqrt(dx * dx + dy * dy + dz * dz));  // (dW/dr)/r, kernel.hpp
       const double fb_minus_fa = -(kGrad[0] * dx + kGrad[1] * dy + kGrad[2] * dz);
       const double vb = v.mass[j] / v.rho[j];
       // a: V_b (f_b - f_a) F r_ab;  b: V_a (f_a - f_b) (-F r_ab) = V_a (f_b - f_a) F r_ab
@@ -38,6 +37,7 @@ struct LinearGradientOp {
     }
   }
 };
+static_assert(PairOperation<LinearGradientOp>);
 
 /// A free block of water of nx x ny x nz BCC cells (no walls: free surface on every side).
 Case free_block(double dx, const PhysicsParams& phys, int nx = 10, int ny = 8, int nz = 6) {

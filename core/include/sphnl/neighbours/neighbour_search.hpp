@@ -21,11 +21,11 @@
 #include <span>
 #include <vector>
 
-#include "sphnl/kinds.hpp"
 #include "sphnl/grid.hpp"
+#include "sphnl/gridders/gridder.hpp"
+#include "sphnl/kinds.hpp"
 #include "sphnl/neighbours/distance.hpp"
 #include "sphnl/neighbours/uninit_buffer.hpp"
-#include "sphnl/gridders/gridder.hpp"
 #include "sphnl/orderings/cell_order.hpp"
 
 namespace sphnl {

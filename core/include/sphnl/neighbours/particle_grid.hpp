@@ -7,9 +7,9 @@
 #include <memory>
 #include <vector>
 
-#include "sphnl/kinds.hpp"
 #include "sphnl/grid.hpp"
 #include "sphnl/gridders/gridder.hpp"
+#include "sphnl/kinds.hpp"
 #include "sphnl/orderings/cell_order.hpp"
 #include "sphnl/particles.hpp"
 

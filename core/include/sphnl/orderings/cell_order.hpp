@@ -7,8 +7,8 @@
 #include <span>
 #include <vector>
 
-#include "sphnl/kinds.hpp"
 #include "sphnl/grid.hpp"
+#include "sphnl/kinds.hpp"
 #include "sphnl/particles.hpp"
 
 namespace sphnl {
