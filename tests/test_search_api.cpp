@@ -335,3 +335,21 @@ TEST(SearchApi, BadInputsThrowClearErrors) {
   EXPECT_EQ(offsets, (std::vector<std::int64_t>{0, 1, 2}));
   EXPECT_EQ(indices, (std::vector<std::uint32_t>{1, 0}));
 }
+
+TEST(SearchApi, MoreCellsAlongAnAxisThanCoordinatesHoldIsRefused) {
+  // A line of 2 200 000 points 1 apart with radius 1.01: 2.18 million cells
+  // along x, past the 2^21 = 2 097 152 cell coordinates per axis. Lists would silently lose pairs;
+  // the API refuses them with std::length_error instead.
+  const std::size_t n = 2200000;
+  std::vector<double> x(n), zero(n, 0.0);
+  for (std::size_t i = 0; i < n; ++i) x[i] = static_cast<double>(i);
+  Search s(1.01);
+  EXPECT_NE(message_of([&] { s.build(x, zero, zero); }).find("cells of side"), std::string::npos);
+  EXPECT_THROW(s.build(x, zero, zero), std::length_error);
+  EXPECT_EQ(s.size(), 0u);
+  // a million fewer points fit: every inner point has its two neighbours
+  x.resize(n - 1000000);
+  zero.resize(x.size());
+  s.build(x, zero, zero);
+  EXPECT_EQ(s.num_entries(Rows::full), 2 * (x.size() - 1));
+}

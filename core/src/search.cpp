@@ -14,6 +14,8 @@ namespace sphnl {
 
 namespace {
 
+constexpr int kMaxCellsPerAxis = 1 << 21;
+
 [[noreturn]] void fail(const std::string& what) { throw std::invalid_argument("sphnl::Search: " + what); }
 
 void check_lengths(std::size_t nx, std::size_t ny, std::size_t nz, const char* what) {
@@ -99,6 +101,15 @@ struct Search::Impl {
     check_finite(x, y, z, "build");
     try {
       engine.run(x, y, z, radius, lists);
+      // Cell coordinates are packed in 21 bits per axis (CellOrder::pack_coords):
+      // a longer grid would silently lose pairs, so its lists are refused.
+      const CellGrid& grid = engine.grid();
+      for (int d = 0; d < 3; ++d)
+        if (grid.n[d] > kMaxCellsPerAxis)
+          throw std::length_error("sphnl::Search: the cloud needs " + std::to_string(grid.n[d]) + " cells of side " +
+                                  std::to_string(grid.cell_size) + " along " + "xyz"[d] + ", more than the " +
+                                  std::to_string(kMaxCellsPerAxis) +
+                                  " cell coordinates can hold; use a larger radius or split the cloud along that axis");
       // Rows come in the order the engine swept the cells, one per point:
       // row r's point is the r-th point in cell order.
       cell_order.resize(lists.num_rows());
@@ -108,7 +119,7 @@ struct Search::Impl {
       throw std::length_error("sphnl::Search: out of memory for the cells or lists of " + std::to_string(x.size()) +
                               " points at radius " + std::to_string(radius) +
                               " (a larger radius than intended, or split the cloud)");
-    } catch (const std::invalid_argument&) {
+    } catch (const std::logic_error&) {  // invalid_argument and length_error, ours or the engine's
       built = false;
       throw;
     } catch (const std::runtime_error& e) {  // the cell keys or a gridder's rows would overflow

@@ -12,7 +12,8 @@
 //
 // A thin layer over NeighbourSearch (the engine of `sphnl neighbours` and of
 // the `search` benchmarks); this header includes none of the engine's headers.
-// Not thread-safe: one Search per thread.
+// Not thread-safe: one Search per thread. A moved-from Search may only be
+// assigned to or destroyed.
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -65,7 +66,9 @@ class Search {
   /// call only. Float input is widened into internal double buffers (the
   /// engine computes in double). Throws std::invalid_argument for spans of
   /// different lengths or a non-finite coordinate (naming the point), and
-  /// std::length_error for 2^32 - 1 points or more or when memory runs out.
+  /// std::length_error for 2^32 - 1 points or more, for a grid of more than
+  /// 2^21 cells along one axis (the cell coordinates' range), or when memory
+  /// runs out. After a failed build, size() is 0 and no old results remain.
   void build(std::span<const double> x, std::span<const double> y, std::span<const double> z);
   /// build() for float coordinates (widened to double internally).
   void build(std::span<const float> x, std::span<const float> y, std::span<const float> z);
