@@ -85,6 +85,10 @@ struct Search::Impl {
   std::vector<double> x, y, z;
   std::vector<std::uint32_t> cell_order;
   bool built = false;
+  // Entries of the half lists, counted on first use after a build (rows()
+  // and rows_into() both need it).
+  mutable std::uint64_t half_entries = 0;
+  mutable bool half_counted = false;
 
   Impl(double r, const Options& o)
       : radius(r), options(o), engine([&] {
@@ -98,6 +102,7 @@ struct Search::Impl {
   /// Runs the engine on x, y, z (already filled and length-checked).
   void run() {
     built = false;  // a failed build leaves no stale results
+    half_counted = false;
     check_finite(x, y, z, "build");
     try {
       engine.run(x, y, z, radius, lists);
@@ -195,11 +200,15 @@ const Search::Options& Search::options() const { return impl_->options; }
 std::uint64_t Search::num_entries(Rows kind) const {
   if (!impl_->built) return 0;
   if (kind == Rows::full) return impl_->lists.num_entries();
-  std::uint64_t n = 0;
-  impl_->each_row(kind, [&](std::uint32_t i, std::span<const std::uint32_t> row, Rows) {
-    for (std::uint32_t j : row) n += j > i;
-  });
-  return n;
+  if (!impl_->half_counted) {
+    std::uint64_t n = 0;
+    impl_->each_row(kind, [&](std::uint32_t i, std::span<const std::uint32_t> row, Rows) {
+      for (std::uint32_t j : row) n += j > i;
+    });
+    impl_->half_entries = n;
+    impl_->half_counted = true;
+  }
+  return impl_->half_entries;
 }
 
 void Search::rows_into(Rows kind, std::span<std::int64_t> offsets, std::span<std::uint32_t> indices) const {
