@@ -1,0 +1,45 @@
+# ctest install_and_build_examples: cmake -DBUILD_DIR= -DSOURCE_DIR= -DWORK_DIR= -DCXX= -P check_install.cmake
+# Installs the build tree to WORK_DIR/prefix, configures and builds each
+# example of examples/ against it (find_package(sphnl) only, no path into the
+# source or build tree), runs it and checks its last line says "ok".
+foreach(var BUILD_DIR SOURCE_DIR WORK_DIR CXX)
+  if(NOT ${var})
+    message(FATAL_ERROR "check_install.cmake: pass -D${var}=...")
+  endif()
+endforeach()
+
+function(run_step what)
+  execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "${what} failed (${rc}):\n${out}\n${err}")
+  endif()
+  set(step_output "${out}" PARENT_SCOPE)
+endfunction()
+
+file(REMOVE_RECURSE ${WORK_DIR})
+set(prefix ${WORK_DIR}/prefix)
+run_step("cmake --install" ${CMAKE_COMMAND} --install ${BUILD_DIR} --prefix ${prefix})
+if(EXISTS ${prefix}/include/sphnl_revision.hpp OR NOT EXISTS ${prefix}/include/sphnl/search.hpp)
+  message(FATAL_ERROR "installed headers wrong: search.hpp missing or the build's revision header installed")
+endif()
+file(GLOB_RECURSE targets_files ${prefix}/*/sphnlTargets*.cmake)
+foreach(f ${targets_files})
+  file(READ ${f} text)
+  string(FIND "${text}" "${BUILD_DIR}" in_build)
+  string(FIND "${text}" "${SOURCE_DIR}/core" in_source)
+  if(NOT in_build EQUAL -1 OR NOT in_source EQUAL -1)
+    message(FATAL_ERROR "${f} points into the build or source tree")
+  endif()
+endforeach()
+
+foreach(example neighbours density)
+  set(bin ${WORK_DIR}/${example})
+  run_step("configure examples/${example}" ${CMAKE_COMMAND} -S ${SOURCE_DIR}/examples/${example} -B ${bin}
+           -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_CXX_COMPILER=${CXX} -DCMAKE_BUILD_TYPE=Release)
+  run_step("build examples/${example}" ${CMAKE_COMMAND} --build ${bin})
+  run_step("run examples/${example}" ${bin}/${example})
+  message(STATUS "examples/${example}:\n${step_output}")
+  if(NOT step_output MATCHES "ok\n?$")
+    message(FATAL_ERROR "examples/${example} did not end with \"ok\":\n${step_output}")
+  endif()
+endforeach()

@@ -1,0 +1,331 @@
+#include "sphnl/search.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <new>
+#include <stdexcept>
+#include <string>
+
+#include "sphnl/neighbours/distance.hpp"
+#include "sphnl/neighbours/neighbour_search.hpp"
+
+namespace sphnl {
+
+namespace {
+
+constexpr int kMaxCellsPerAxis = 1 << 21;
+
+[[noreturn]] void fail(const std::string& what) { throw std::invalid_argument("sphnl::Search: " + what); }
+
+void check_lengths(std::size_t nx, std::size_t ny, std::size_t nz, const char* what) {
+  if (ny != nx || nz != nx)
+    fail(std::string(what) + ": x, y and z must have the same length, got " + std::to_string(nx) + ", " +
+         std::to_string(ny) + " and " + std::to_string(nz));
+  if (nx >= std::size_t{0xFFFFFFFFu})
+    throw std::length_error("sphnl::Search: " + std::to_string(nx) +
+                            " points; indices are 32-bit, so at most 2^32 - 2 points per search (split the cloud)");
+}
+
+/// Throws naming the first non-finite coordinate; also refuses clouds whose
+/// extent overflows a double (the cell grid could not be sized).
+void check_finite(const std::vector<double>& x, const std::vector<double>& y, const std::vector<double>& z,
+                  const char* what) {
+  const std::vector<double>* axes[3] = {&x, &y, &z};
+  const char* names[3] = {"x", "y", "z"};
+  for (int d = 0; d < 3; ++d) {
+    const std::vector<double>& v = *axes[d];
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (!std::isfinite(v[i]))
+        fail(std::string(what) + ": " + names[d] + "[" + std::to_string(i) + "] is " + (std::isnan(v[i]) ? "NaN" : "infinite") +
+             "; every coordinate must be finite (remove or fix that point)");
+      lo = std::min(lo, v[i]);
+      hi = std::max(hi, v[i]);
+    }
+    if (!v.empty() && !std::isfinite(hi - lo))
+      fail(std::string(what) + ": the " + names[d] + " coordinates span more than the largest double (" +
+           std::to_string(lo) + " to " + std::to_string(hi) + "); shift or scale the cloud");
+  }
+}
+
+template <class T>
+void copy_columns(std::span<const T> x, std::span<const T> y, std::span<const T> z, std::vector<double>& ox,
+                  std::vector<double>& oy, std::vector<double>& oz) {
+  ox.assign(x.begin(), x.end());
+  oy.assign(y.begin(), y.end());
+  oz.assign(z.begin(), z.end());
+}
+
+template <class T>
+void split_interleaved(std::span<const T> xyz, std::vector<double>& ox, std::vector<double>& oy, std::vector<double>& oz) {
+  if (xyz.size() % 3 != 0)
+    fail("build_interleaved: " + std::to_string(xyz.size()) + " values is not a multiple of 3 (x0 y0 z0 x1 y1 z1 ...)");
+  const std::size_t n = xyz.size() / 3;
+  ox.resize(n);
+  oy.resize(n);
+  oz.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    ox[i] = xyz[3 * i];
+    oy[i] = xyz[3 * i + 1];
+    oz[i] = xyz[3 * i + 2];
+  }
+}
+
+}  // namespace
+
+struct Search::Impl {
+  double radius;
+  Options options;
+  NeighbourSearch engine;
+  NeighbourLists lists;
+  // The coordinates of the last build, in input order: the engine reads them,
+  // query() needs them after the caller's spans are gone, and float or
+  // interleaved input has to be converted anyway.
+  std::vector<double> x, y, z;
+  std::vector<std::uint32_t> cell_order;
+  bool built = false;
+  // Entries of the half lists, counted on first use after a build (rows()
+  // and rows_into() both need it).
+  mutable std::uint64_t half_entries = 0;
+  mutable bool half_counted = false;
+
+  Impl(double r, const Options& o)
+      : radius(r), options(o), engine([&] {
+          SearchOptions s;
+          s.gridder = o.gridder;
+          s.order = o.cell_order;
+          s.reorder = o.reorder;
+          return s;
+        }()) {}
+
+  /// Runs the engine on x, y, z (already filled and length-checked).
+  void run() {
+    built = false;  // a failed build leaves no stale results
+    half_counted = false;
+    check_finite(x, y, z, "build");
+    try {
+      engine.run(x, y, z, radius, lists);
+      // Cell coordinates are packed in 21 bits per axis (CellOrder::pack_coords):
+      // a longer grid would silently lose pairs, so its lists are refused.
+      const CellGrid& grid = engine.grid();
+      for (int d = 0; d < 3; ++d)
+        if (grid.n[d] > kMaxCellsPerAxis)
+          throw std::length_error("sphnl::Search: the cloud needs " + std::to_string(grid.n[d]) + " cells of side " +
+                                  std::to_string(grid.cell_size) + " along " + "xyz"[d] + ", more than the " +
+                                  std::to_string(kMaxCellsPerAxis) +
+                                  " cell coordinates can hold; use a larger radius or split the cloud along that axis");
+      // Rows come in the order the engine swept the cells, one per point:
+      // row r's point is the r-th point in cell order.
+      cell_order.resize(lists.num_rows());
+      for (std::size_t r = 0; r < lists.num_rows(); ++r) cell_order[r] = lists.point(r);
+    } catch (const std::bad_alloc&) {
+      built = false;
+      throw std::length_error("sphnl::Search: out of memory for the cells or lists of " + std::to_string(x.size()) +
+                              " points at radius " + std::to_string(radius) +
+                              " (a larger radius than intended, or split the cloud)");
+    } catch (const std::logic_error&) {  // invalid_argument and length_error, ours or the engine's
+      built = false;
+      throw;
+    } catch (const std::runtime_error& e) {  // the cell keys or a gridder's rows would overflow
+      built = false;
+      throw std::length_error(std::string("sphnl::Search: ") + e.what());
+    }
+    built = true;
+  }
+
+  /// Entries of row r (of point i) that belong in a list of this kind.
+  template <class Fn>
+  void each_row(Rows kind, Fn fn) const {
+    for (std::size_t r = 0; r < lists.num_rows(); ++r) fn(lists.point(r), lists.row(r), kind);
+  }
+};
+
+Search::Search(double radius, const Options& options) {
+  if (!(radius > 0) || !std::isfinite(radius))
+    fail("radius must be a positive finite number, got " + std::to_string(radius));
+  if (options.threads != 1)
+    fail("threads = " + std::to_string(options.threads) + ": the search is single-threaded for now, pass threads = 1");
+  impl_ = std::make_unique<Impl>(radius, options);
+}
+
+Search::Search(double radius) : Search(radius, Options{}) {}
+
+Search::~Search() = default;
+Search::Search(Search&&) noexcept = default;
+Search& Search::operator=(Search&&) noexcept = default;
+
+void Search::build(std::span<const double> x, std::span<const double> y, std::span<const double> z) {
+  check_lengths(x.size(), y.size(), z.size(), "build");
+  copy_columns(x, y, z, impl_->x, impl_->y, impl_->z);
+  impl_->run();
+}
+
+void Search::build(std::span<const float> x, std::span<const float> y, std::span<const float> z) {
+  check_lengths(x.size(), y.size(), z.size(), "build");
+  copy_columns(x, y, z, impl_->x, impl_->y, impl_->z);
+  impl_->run();
+}
+
+void Search::build_interleaved(std::span<const double> xyz) {
+  split_interleaved(xyz, impl_->x, impl_->y, impl_->z);
+  check_lengths(impl_->x.size(), impl_->y.size(), impl_->z.size(), "build_interleaved");
+  impl_->run();
+}
+
+void Search::build_interleaved(std::span<const float> xyz) {
+  split_interleaved(xyz, impl_->x, impl_->y, impl_->z);
+  check_lengths(impl_->x.size(), impl_->y.size(), impl_->z.size(), "build_interleaved");
+  impl_->run();
+}
+
+void Search::update(std::span<const double> x, std::span<const double> y, std::span<const double> z) {
+  if (x.size() != size())
+    fail("update: " + std::to_string(x.size()) + " points, but the last build had " + std::to_string(size()) +
+         "; call build() for a cloud of another size");
+  build(x, y, z);
+}
+
+void Search::update(std::span<const float> x, std::span<const float> y, std::span<const float> z) {
+  if (x.size() != size())
+    fail("update: " + std::to_string(x.size()) + " points, but the last build had " + std::to_string(size()) +
+         "; call build() for a cloud of another size");
+  build(x, y, z);
+}
+
+std::size_t Search::size() const { return impl_->built ? impl_->x.size() : 0; }
+double Search::radius() const { return impl_->radius; }
+const Search::Options& Search::options() const { return impl_->options; }
+
+std::uint64_t Search::num_entries(Rows kind) const {
+  if (!impl_->built) return 0;
+  if (kind == Rows::full) return impl_->lists.num_entries();
+  if (!impl_->half_counted) {
+    std::uint64_t n = 0;
+    impl_->each_row(kind, [&](std::uint32_t i, std::span<const std::uint32_t> row, Rows) {
+      for (std::uint32_t j : row) n += j > i;
+    });
+    impl_->half_entries = n;
+    impl_->half_counted = true;
+  }
+  return impl_->half_entries;
+}
+
+void Search::rows_into(Rows kind, std::span<std::int64_t> offsets, std::span<std::uint32_t> indices) const {
+  const std::size_t n = size();
+  if (offsets.size() != n + 1)
+    fail("rows_into: offsets has " + std::to_string(offsets.size()) + " elements, needs size() + 1 = " + std::to_string(n + 1));
+  const std::uint64_t entries = num_entries(kind);
+  if (indices.size() != entries)
+    fail("rows_into: indices has " + std::to_string(indices.size()) + " elements, needs num_entries() = " +
+         std::to_string(entries));
+  // Count per input point, prefix-sum, then copy every row to its point's
+  // place and sort it: rows come from the engine in cell order.
+  std::fill(offsets.begin(), offsets.end(), 0);
+  const bool half = kind == Rows::half;
+  impl_->each_row(kind, [&](std::uint32_t i, std::span<const std::uint32_t> row, Rows) {
+    std::int64_t c = 0;
+    if (half)
+      for (std::uint32_t j : row) c += j > i;
+    else
+      c = static_cast<std::int64_t>(row.size());
+    offsets[std::size_t{i} + 1] = c;
+  });
+  for (std::size_t i = 0; i < n; ++i) offsets[i + 1] += offsets[i];
+  impl_->each_row(kind, [&](std::uint32_t i, std::span<const std::uint32_t> row, Rows) {
+    std::uint32_t* const begin = indices.data() + offsets[i];
+    std::uint32_t* w = begin;
+    if (half) {
+      for (std::uint32_t j : row)
+        if (j > i) *w++ = j;
+    } else {
+      w = std::copy(row.begin(), row.end(), w);
+    }
+    std::sort(begin, w);
+  });
+}
+
+CompressedRows Search::rows(Rows kind) const {
+  CompressedRows out;
+  out.offsets.resize(size() + 1);
+  out.indices.resize(num_entries(kind));
+  rows_into(kind, out.offsets, out.indices);
+  return out;
+}
+
+void Search::visit_pairs(PairVisitor visit, void* ctx) const {
+  if (!impl_->built) return;
+  impl_->each_row(Rows::half, [&](std::uint32_t i, std::span<const std::uint32_t> row, Rows) {
+    for (std::uint32_t j : row)
+      if (j > i) visit(ctx, i, j);
+  });
+}
+
+std::span<const std::uint32_t> Search::cell_order() const {
+  if (!impl_->built) return {};
+  return impl_->cell_order;
+}
+
+void Search::check_field_size(std::size_t src, std::size_t dst) const {
+  if (src != size() || dst != size())
+    fail("apply_cell_order: the field has " + std::to_string(src) + " elements (output " + std::to_string(dst) +
+         "), the search " + std::to_string(size()) + " points; pass one value per point of the last build");
+}
+
+CompressedRows Search::query(std::span<const double> qx, std::span<const double> qy, std::span<const double> qz) const {
+  if (!impl_->built) throw std::logic_error("sphnl::Search::query: call build() first");
+  check_lengths(qx.size(), qy.size(), qz.size(), "query");
+  const std::size_t nq = qx.size();
+  const Impl& s = *impl_;
+  const CellGrid& grid = s.engine.grid();
+  const CellOrder& order = s.engine.order();
+  const Gridder& gridder = s.engine.gridder();
+  const double radius2 = s.radius * s.radius;
+  std::vector<std::uint32_t> cell(std::max<std::size_t>(1, gridder.max_cell_count()));
+  CompressedRows out;
+  out.offsets.assign(nq + 1, 0);
+  for (std::size_t q = 0; q < nq; ++q) {
+    const double p[3] = {qx[q], qy[q], qz[q]};
+    for (int d = 0; d < 3; ++d)
+      if (!std::isfinite(p[d]))
+        fail(std::string("query: ") + "xyz"[d] + std::string("[") + std::to_string(q) + "] is not finite; every query coordinate must be finite");
+    const std::size_t row_begin = out.indices.size();
+    // Cells have side >= radius (the engine sizes them so, round-off
+    // included), so a point closer than radius lies in one of the 27 cells
+    // around the query's; a query beyond the grid's ring of cells has none.
+    int lo[3], hi[3];
+    bool outside = false;
+    for (int d = 0; d < 3; ++d) {
+      const double c = std::floor((p[d] - grid.box.lo[d]) * grid.inv_cell_size);
+      if (c < -1.0 || c > grid.n[d]) {
+        outside = true;
+        break;
+      }
+      lo[d] = std::max(0, static_cast<int>(c) - 1);
+      hi[d] = std::min(grid.n[d] - 1, static_cast<int>(c) + 1);
+    }
+    if (!outside && !s.x.empty()) {
+      for (int cz = lo[2]; cz <= hi[2]; ++cz)
+        for (int cy = lo[1]; cy <= hi[1]; ++cy)
+          for (int cx = lo[0]; cx <= hi[0]; ++cx) {
+            const std::uint32_t count = gridder.gather_cell(order.key(cx, cy, cz), cell.data());
+            for (std::uint32_t k = 0; k < count; ++k) {
+              const std::uint32_t j = cell[k];
+              if (distance2(s.x[j] - p[0], s.y[j] - p[1], s.z[j] - p[2]) < radius2) out.indices.push_back(j);
+            }
+          }
+      std::sort(out.indices.begin() + static_cast<std::ptrdiff_t>(row_begin), out.indices.end());
+    }
+    out.offsets[q + 1] = static_cast<std::int64_t>(out.indices.size());
+  }
+  return out;
+}
+
+CompressedRows Search::query(std::span<const float> qx, std::span<const float> qy, std::span<const float> qz) const {
+  std::vector<double> x, y, z;
+  check_lengths(qx.size(), qy.size(), qz.size(), "query");
+  copy_columns(qx, qy, qz, x, y, z);
+  return query(std::span<const double>(x), std::span<const double>(y), std::span<const double>(z));
+}
+
+}  // namespace sphnl
