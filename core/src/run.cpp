@@ -15,6 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "sphnl/config_file.hpp"
 #include "sphnl/output.hpp"
 #include "sphnl/timer.hpp"
 #include "sphnl_revision.hpp"
@@ -126,7 +127,8 @@ RunOptions parse_run_options(int argc, char** argv) {
     }
     auto take_value = [&]() -> std::string {
       if (has_value) return value;
-      if (i + 1 >= argc) throw ConfigError("option " + arg + " needs a value");
+      // `--config --out x` must not read "--out" as the file name.
+      if (i + 1 >= argc || std::strncmp(argv[i + 1], "--", 2) == 0) throw ConfigError("option " + arg + " needs a value");
       return argv[++i];
     };
     if (arg == "--config") o.config_file = take_value();
@@ -141,15 +143,7 @@ RunOptions parse_run_options(int argc, char** argv) {
 
 RunConfig load_run_config(const RunOptions& options) {
   json j = json::object();
-  if (!options.config_file.empty()) {
-    std::ifstream in(options.config_file);
-    if (!in) throw ConfigError("cannot read config file '" + options.config_file + "': " + std::strerror(errno));
-    j = json::parse(in, nullptr, /*allow_exceptions=*/false, /*ignore_comments=*/true);
-    if (j.is_discarded())
-      throw ConfigError("config file '" + options.config_file + "' is not valid JSON; expected an object such as {\"particles\": 31239, \"gridder\": \"B\"}");
-    if (!j.is_object())
-      throw ConfigError("config file '" + options.config_file + "' must hold a JSON object of key: value pairs");
-  }
+  if (!options.config_file.empty()) j = read_config_file(options.config_file);
   for (const auto& kv : options.overrides) apply_override(j, kv);
   return config_from_json(j);
 }
