@@ -16,6 +16,7 @@
 
 #include "bench_common.hpp"
 #include "sphnl/experiment_schema.hpp"
+#include "sphnl/output.hpp"
 #include "sphnl_revision.hpp"
 
 using nlohmann::json;
@@ -97,6 +98,16 @@ int main(int argc, char** argv) {
                   "'; run that one");
     const std::string family = experiment.at("benchmark").get<std::string>();
     const json& sweep = experiment.at("sweep").at(opt.size);
+    // Before anything is built: a snapshot that cannot be cached would be
+    // developed (minutes to an hour) and then lost.
+    if (family != "search") {
+      try {
+        sphnl::ensure_writable_directory(opt.cache_dir);
+      } catch (const std::exception&) {
+        return fail("snapshot cache '" + opt.cache_dir + "' is not a writable directory (" + std::strerror(errno) +
+                    "); give --cache-dir=DIR a directory you can write to");
+      }
+    }
     if (family == "step") {
       const int window = experiment.at("window_steps").at(opt.size).get<int>();
       if (window < 1) return fail("window_steps must be >= 1");
