@@ -16,6 +16,7 @@
 
 #include "bench_common.hpp"
 #include "sphnl/experiment_schema.hpp"
+#include "sphnl/memory_estimate.hpp"
 #include "sphnl/output.hpp"
 #include "sphnl_revision.hpp"
 
@@ -26,11 +27,13 @@ namespace {
 
 const char* kUsage =
     "usage: sphnl_bench --experiment=experiments/<id>.json [--size=tiny|default|full] [--cache-dir=DIR] [--validate]\n"
+    "                   [--force-memory]\n"
     "                   [--benchmark_filter=REGEX --benchmark_out=FILE --benchmark_out_format=json\n"
     "                    --benchmark_repetitions=N --benchmark_min_time=SECONDS ...]\n"
     "Registers the experiment's sweep for that size; every benchmark iteration times `window_steps`\n"
     "steps from the cached developed flow (see docs/CONTRACTS.md).\n"
-    "--validate only checks the experiment file (unknown or duplicate keys, sweep axes, values) and exits.\n";
+    "--validate only checks the experiment file (unknown or duplicate keys, sweep axes, values) and exits.\n"
+    "A sweep whose memory estimate exceeds the available memory is refused unless --force-memory.\n";
 
 std::string cpu_model() {
   std::ifstream in("/proc/cpuinfo");
@@ -38,6 +41,30 @@ std::string cpu_model() {
   while (std::getline(in, line))
     if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
   return "unknown";
+}
+
+/// The largest memory estimate over the sweep's points (each benchmark runs
+/// on its own, but the developed flows stay cached in memory: summed per N).
+sphnl::MemoryEstimate sweep_memory(const std::string& family, const json& sweep) {
+  sphnl::MemoryEstimate worst;
+  for (const sb::Point& p : sb::cross_product(sweep, {})) {
+    sphnl::MemoryEstimate e;
+    const long n = p.at("n").get<long>();
+    if (family == "search") {
+      // full lists of a cubic lattice with R = 2.6 spacings: 4/3 pi 2.6^3 = 74 entries a point
+      e = sphnl::estimate_search_memory(static_cast<std::uint64_t>(n), static_cast<std::uint64_t>(n) * 74);
+    } else {
+      sphnl::RunConfig c;
+      c.particles = n;
+      if (p.count("list")) c.list = sphnl::config_from_json({{"list", p.at("list")}}).list;
+      if (p.count("kgc")) c.kgc = sphnl::config_from_json({{"kgc", p.at("kgc")}}).kgc;
+      e = sphnl::estimate_run_memory(c);
+      e.bytes += static_cast<double>(n) * 200;  // the cached developed flow beside the timed copy
+      e.detail += " + the cached flow";
+    }
+    if (e.bytes > worst.bytes) worst = e;
+  }
+  return worst;
 }
 
 int fail(const std::string& msg) {
@@ -62,7 +89,7 @@ void die_with_parent(pid_t parent) {
 int main(int argc, char** argv) {
   die_with_parent(::getppid());
   sb::Options opt;
-  bool validate_only = false;
+  bool validate_only = false, force_memory = false;
   std::vector<char*> rest{argv[0]};
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -74,6 +101,7 @@ int main(int argc, char** argv) {
     else if (const char* v2 = value("--size=")) opt.size = v2;
     else if (const char* v3 = value("--cache-dir=")) opt.cache_dir = v3;
     else if (a == "--validate") validate_only = true;
+    else if (a == "--force-memory") force_memory = true;
     else if (a == "--help" || a == "-h") { std::fputs(kUsage, stdout); return 0; }
     else rest.push_back(argv[i]);
   }
@@ -106,6 +134,14 @@ int main(int argc, char** argv) {
       } catch (const std::exception&) {
         return fail("snapshot cache '" + opt.cache_dir + "' is not a writable directory (" + std::strerror(errno) +
                     "); give --cache-dir=DIR a directory you can write to");
+      }
+    }
+    if (!force_memory) {
+      try {
+        sphnl::check_memory(sweep_memory(family, sweep), "the largest benchmark of this sweep", "--force-memory");
+      } catch (const sphnl::MemoryError& e) {
+        std::fprintf(stderr, "sphnl_bench: %s\n", e.what());
+        return 2;
       }
     }
     if (family == "step") {

@@ -16,6 +16,8 @@
 #include <nlohmann/json.hpp>
 
 #include "sphnl/config_file.hpp"
+#include "sphnl/memory_estimate.hpp"
+#include "sphnl/run_checks.hpp"
 #include "sphnl/output.hpp"
 #include "sphnl/timer.hpp"
 #include "sphnl_revision.hpp"
@@ -96,7 +98,7 @@ std::string snapshot_stem(long step) {
 }  // namespace
 
 std::string run_usage() {
-  return "usage: sphnl run [--config FILE.json] [--set key=value]... [--out DIR] [--quiet]\n"
+  return "usage: sphnl run [--config FILE.json] [--set key=value]... [--out DIR] [--quiet] [--overwrite] [--force-memory]\n"
          "\n"
          "Runs the dam break with obstacle of Dominguez et al. 2011, section 2.2.\n"
          "  --config FILE   JSON object of config keys (see README.md, section 'Configuration')\n"
@@ -104,6 +106,8 @@ std::string run_usage() {
          "  --out DIR       output directory (default: sphnl-out); receives summary.json,\n"
          "                  snapshots/step_NNNNNN.vtu and .csv, snapshots.pvd\n"
          "  --quiet         no progress line\n"
+         "  --overwrite     replace the run already in DIR (else a DIR holding one is refused)\n"
+         "  --force-memory  run even when the memory estimate exceeds the available memory\n"
          "config keys: " +
          [] {
            std::string s;
@@ -135,7 +139,9 @@ RunOptions parse_run_options(int argc, char** argv) {
     else if (arg == "--set") o.overrides.push_back(take_value());
     else if (arg == "--out") o.out_dir = take_value();
     else if (arg == "--quiet" && !has_value) o.quiet = true;
-    else throw ConfigError("unknown option '" + std::string(argv[i]) + "' of sphnl run; allowed: --config FILE, --set key=value, --out DIR, --quiet, --help");
+    else if (arg == "--overwrite" && !has_value) o.overwrite = true;
+    else if (arg == "--force-memory" && !has_value) o.force_memory = true;
+    else throw ConfigError("unknown option '" + std::string(argv[i]) + "' of sphnl run; allowed: --config FILE, --set key=value, --out DIR, --quiet, --overwrite, --force-memory, --help");
   }
   if (o.out_dir.empty()) throw ConfigError("--out needs a directory name");
   return o;
@@ -220,8 +226,18 @@ int run_main(int argc, char** argv) {
     std::cerr << "sphnl run: " << e.what() << "\n";
     return 2;
   }
+  if (!options.force_memory) {
+    try {
+      check_memory(estimate_run_memory(config), "this run", "--force-memory");
+    } catch (const MemoryError& e) {
+      std::cerr << "sphnl run: " << e.what() << "\n";
+      return 2;
+    }
+  }
+  if (const std::string w = threads_warning(config.threads); !w.empty()) std::cerr << "sphnl run: " << w << "\n";
   const fs::path out_dir(options.out_dir), snap_dir = out_dir / "snapshots";
   try {
+    prepare_output_folder(out_dir, options.overwrite);
     ensure_writable_directory(out_dir);
     ensure_writable_directory(snap_dir);
   } catch (const std::exception& e) {
@@ -233,6 +249,7 @@ int run_main(int argc, char** argv) {
   std::unique_ptr<Simulation> sim_ptr;
   try {
     sim_ptr = std::make_unique<Simulation>(config);
+    check_case_size(sim_ptr->case_info(), config);
   } catch (const ConfigError& e) {
     std::cerr << "sphnl run: " << e.what() << "\n";
     return 2;

@@ -119,5 +119,132 @@ class BenchTest(unittest.TestCase):
                 os.kill(child, signal.SIGKILL)
 
 
+@unittest.skipUnless(SPHNL.exists(), f"{SPHNL} not built")
+class RunTest(unittest.TestCase):
+    def setUp(self):
+        self.tmp = pathlib.Path(tempfile.mkdtemp(prefix="sphnl_robust_"))
+
+    def sphnl(self, *args, env=None):
+        return run([SPHNL, *args], env=dict(os.environ, **(env or {})))
+
+    def test_too_few_fluid_particles_names_the_key(self):
+        r = self.sphnl("run", "--set", "particles=100", "--set", "steps=1", "--quiet", "--out", self.tmp / "a")
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("the case has 2 fluid particles (particles = 100), fewer than the 200", r.stderr)
+        r = self.sphnl("run", "--set", "dx=1.0", "--set", "steps=1", "--quiet", "--out", self.tmp / "b")
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("the case has 0 fluid particles (dx = 1.0", r.stderr)
+        self.assertIn("a smaller dx", r.stderr)
+        self.assertFalse((self.tmp / "b" / "summary.json").exists())
+
+    def test_more_threads_than_cores_warns(self):
+        threads = (os.cpu_count() or 1) + 1
+        r = self.sphnl("run", "--set", "particles=3000", "--set", "steps=1", "--set", f"threads={threads}",
+                       "--quiet", "--out", self.tmp / "a")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn(f"warning: threads = {threads} is more than the", r.stderr)
+        r = self.sphnl("run", "--set", "particles=3000", "--set", "steps=1", "--quiet", "--out", self.tmp / "b")
+        self.assertNotIn("warning", r.stderr)
+
+    def test_output_folder_of_another_run_is_not_mixed(self):
+        out = self.tmp / "a"
+        r = self.sphnl("run", "--set", "particles=3000", "--set", "steps=4", "--set", "output_interval=0",
+                       "--quiet", "--out", out)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertTrue((out / "snapshots" / "step_000004.csv").exists())
+        (out / "notes.txt").write_text("mine")
+        r = self.sphnl("run", "--set", "particles=3000", "--set", "steps=2", "--set", "output_interval=0",
+                       "--quiet", "--out", out)
+        self.assertEqual(r.returncode, 2)
+        self.assertIn(f"output folder '{out}' already holds a run", r.stderr)
+        self.assertIn("--overwrite", r.stderr)
+        r = self.sphnl("run", "--set", "particles=3000", "--set", "steps=2", "--set", "output_interval=0",
+                       "--quiet", "--out", out, "--overwrite")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(sorted(p.name for p in (out / "snapshots").iterdir()), ["step_000002.csv", "step_000002.vtu"])
+        self.assertEqual((out / "notes.txt").read_text(), "mine")  # not sphnl's: kept
+
+    def test_memory_estimate_stops_at_once_and_can_be_overridden(self):
+        start = time.monotonic()
+        r = self.sphnl("run", "--set", "particles=100000000", "--quiet", "--out", self.tmp / "a")
+        self.assertEqual(r.returncode, 2)
+        self.assertLess(time.monotonic() - start, 5)
+        self.assertIn("this run needs about", r.stderr)
+        self.assertIn("pass --force-memory to run anyway", r.stderr)
+        small = {"SPHNL_MEMORY_AVAILABLE": "1000000"}
+        args = ["run", "--set", "particles=3000", "--set", "steps=1", "--quiet"]
+        self.assertEqual(self.sphnl(*args, "--out", self.tmp / "b", env=small).returncode, 2)
+        r = self.sphnl(*args, "--out", self.tmp / "c", "--force-memory", env=small)
+        self.assertEqual(r.returncode, 0, r.stderr)
+
+    def test_memory_estimate_is_within_a_factor_of_the_measured_peak(self):
+        # Black box: with MemAvailable faked at 2x the measured peak RSS the
+        # run is allowed (estimate <= 2x), at 0.8x it is refused (estimate >= 0.8x).
+        for lst in ("cll", "vlx"):
+            args = ["run", "--set", "particles=40000", "--set", "steps=3", "--set", f"list={lst}",
+                    "--set", "output_interval=0", "--quiet", "--overwrite"]
+            r = self.sphnl(*args, "--out", self.tmp / lst)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            peak = json.loads((self.tmp / lst / "summary.json").read_text())["peak_rss_bytes"]
+            r = self.sphnl(*args, "--out", self.tmp / lst, env={"SPHNL_MEMORY_AVAILABLE": str(2 * peak)})
+            self.assertEqual(r.returncode, 0, f"{lst}: estimate above 2x the peak RSS {peak}: {r.stderr}")
+            r = self.sphnl(*args, "--out", self.tmp / lst, env={"SPHNL_MEMORY_AVAILABLE": str(int(0.8 * peak))})
+            self.assertEqual(r.returncode, 2, f"{lst}: estimate below 0.8x the peak RSS {peak}")
+
+
+@unittest.skipUnless(SPHNL.exists(), f"{SPHNL} not built")
+class NeighboursTest(unittest.TestCase):
+    def setUp(self):
+        self.tmp = pathlib.Path(tempfile.mkdtemp(prefix="sphnl_robust_"))
+
+    def neighbours(self, text, *args):
+        inp = self.tmp / "in.csv"
+        inp.write_text(text)
+        return run([SPHNL, "neighbours", "--input", inp, "--radius", "0.1", "--out", self.tmp / "counts.csv", *args])
+
+    def test_identical_points_are_refused_before_allocating(self):
+        start = time.monotonic()
+        r = self.neighbours("x,y,z\n" + "0.5,0.5,0.5\n" * 100000)
+        self.assertEqual(r.returncode, 1, r.stderr)
+        self.assertLess(time.monotonic() - start, 10)
+        self.assertIn("9999900000 list entries, counted before allocating", r.stderr)
+        self.assertIn("--force-memory 1", r.stderr)
+        self.assertNotIn("bad_alloc", r.stderr)
+        self.assertFalse((self.tmp / "counts.csv").exists())
+
+    def test_semicolon_line_is_one_point(self):
+        r = self.neighbours("0;0;0\n")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual((self.tmp / "counts.csv").read_text(), "index,count\n0,0\n")
+        r = self.neighbours("x;y;z\n0;0;0\n0.05;0;0\n")
+        self.assertEqual((self.tmp / "counts.csv").read_text(), "index,count\n0,1\n1,1\n")
+
+    def test_gridder_c_overflow_suggests_this_tools_option(self):
+        r = self.neighbours("0.5,0.5,0.5\n" * 50 + "".join(f"{i * 0.3},0,0\n" for i in range(20)),
+                            "--gridder", "C", "--max-parts-in-cell", "4")
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("--max-parts-in-cell 100", r.stderr)
+        self.assertNotIn("--set", r.stderr)
+
+    def test_failed_pairs_write_leaves_no_counts(self):
+        blocker = self.tmp / "a_file"
+        blocker.write_text("x")
+        r = self.neighbours("0,0,0\n0.05,0,0\n", "--pairs", blocker / "pairs.csv")
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("pairs.csv", r.stderr)
+        self.assertEqual(sorted(p.name for p in self.tmp.iterdir()), ["a_file", "in.csv"])
+
+    def test_bytes_used_is_in_use_not_capacity(self):
+        r = self.neighbours("".join(f"{i * 0.01},0,0\n" for i in range(2000)))
+        self.assertEqual(r.returncode, 0, r.stderr)
+        line = next(l for l in r.stdout.splitlines() if l.startswith("bytes used"))
+        used, lists, capacity = (int(v) for v in
+                                 __import__("re").findall(r"(?:used|lists|capacity)\s+(\d+)", line))
+        entries = int(next(l for l in r.stdout.splitlines() if l.startswith("list entries")).split()[2])
+        self.assertEqual(lists, entries * 4 + 2001 * 8 + 2000 * 4)
+        self.assertLessEqual(lists, capacity)
+        self.assertGreater(used, lists)
+
+
 if __name__ == "__main__":
     unittest.main()
