@@ -75,6 +75,8 @@ int fail(const std::string& msg) {
 /// The benchmark dies with its parent (experiments/run.py, make): killed
 /// alone (kill -9, the OOM killer) the driver would otherwise leave it
 /// running, possibly for an hour of snapshot building, beside the rerun.
+/// Linux sends the signal when the parent *thread* that started us exits,
+/// so a driver must start sphnl_bench from a thread that outlives it.
 void die_with_parent(pid_t parent) {
   if (::prctl(PR_SET_PDEATHSIG, SIGKILL) != 0) std::perror("sphnl_bench: prctl(PR_SET_PDEATHSIG)");
   // The parent may have died before prctl: then we were already re-parented.
