@@ -38,6 +38,14 @@ double available_memory_bytes() {
   return 0;
 }
 
+double peak_resident_bytes() {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("VmHWM:", 0) == 0) return std::strtod(line.c_str() + 6, nullptr) * 1024.0;  // kB
+  return 0;
+}
+
 std::string format_bytes(double bytes) {
   char buf[48];
   const char* units[] = {"B", "KiB", "MiB", "GiB", "TiB"};

@@ -32,11 +32,7 @@ namespace {
 volatile std::sig_atomic_t g_interrupted = 0;
 extern "C" void on_interrupt(int) { g_interrupted = 1; }
 
-std::size_t peak_rss_bytes() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return static_cast<std::size_t>(u.ru_maxrss) * 1024;  // Linux reports KiB
-}
+std::size_t peak_rss_bytes() { return static_cast<std::size_t>(peak_resident_bytes()); }
 
 std::string format_duration(double s) {
   if (!std::isfinite(s) || s < 0) return "?";

@@ -177,6 +177,16 @@ class RunTest(unittest.TestCase):
         r = self.sphnl(*args, "--out", self.tmp / "c", "--force-memory", env=small)
         self.assertEqual(r.returncode, 0, r.stderr)
 
+    def test_peak_rss_is_the_runs_own_not_the_parents(self):
+        # ru_maxrss survives execve: a 300 MB parent made every child report >= 300 MB.
+        ballast = bytearray(300 * 1024 * 1024)
+        ballast[::4096] = b"x" * len(ballast[::4096])  # touch every page
+        r = self.sphnl("run", "--set", "particles=3000", "--set", "steps=1", "--quiet", "--out", self.tmp / "a")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        peak = json.loads((self.tmp / "a" / "summary.json").read_text())["peak_rss_bytes"]
+        del ballast
+        self.assertLess(peak, 100 * 1024 * 1024)
+
     def test_memory_estimate_is_within_a_factor_of_the_measured_peak(self):
         # Black box: with MemAvailable faked at 2x the measured peak RSS the
         # run is allowed (estimate <= 2x), at 0.8x it is refused (estimate >= 0.8x).

@@ -55,6 +55,11 @@ std::uint64_t count_neighbour_entries(std::span<const double> x, std::span<const
 /// the option that skips the check ("--force-memory").
 void check_memory(const MemoryEstimate& estimate, const std::string& what, const std::string& override_hint);
 
+/// Peak resident set of this process in bytes (VmHWM of /proc/self/status).
+/// Not getrusage's ru_maxrss: Linux keeps that across execve, so a benchmark
+/// started by a 180 MB Python driver reported the driver's peak as its own.
+double peak_resident_bytes();
+
 /// "1.23 GiB"
 std::string format_bytes(double bytes);
 
