@@ -9,6 +9,7 @@
 #include <memory>
 #include <sstream>
 
+#include "sphnl/memory_estimate.hpp"
 #include "sphnl/snapshot.hpp"
 
 namespace sphnl::bench {
@@ -109,10 +110,6 @@ __attribute__((noinline)) void timed_window(Simulation& sim, int steps) {
   for (int s = 0; s < steps; ++s) sim.step();
 }
 
-double peak_rss_bytes() {
-  rusage ru{};
-  getrusage(RUSAGE_SELF, &ru);
-  return static_cast<double>(ru.ru_maxrss) * 1024.0;
-}
+double peak_rss_bytes() { return peak_resident_bytes(); }  // not ru_maxrss: see memory_estimate.hpp
 
 }  // namespace sphnl::bench

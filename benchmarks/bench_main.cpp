@@ -2,8 +2,12 @@
 // schema in docs/CONTRACTS.md) as Google Benchmark benchmarks and runs them.
 //   sphnl_bench --experiment=experiments/fig06.json [--size=tiny|default|full]
 //               [--cache-dir=results/cache] [Google Benchmark flags]
+//   sphnl_bench --experiment=F --validate   only check F against the schema (exit 0 or 2)
 #include <omp.h>
+#include <sys/prctl.h>
+#include <unistd.h>
 
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -11,6 +15,9 @@
 #include <thread>
 
 #include "bench_common.hpp"
+#include "sphnl/experiment_schema.hpp"
+#include "sphnl/memory_estimate.hpp"
+#include "sphnl/output.hpp"
 #include "sphnl_revision.hpp"
 
 using nlohmann::json;
@@ -19,11 +26,14 @@ namespace sb = sphnl::bench;
 namespace {
 
 const char* kUsage =
-    "usage: sphnl_bench --experiment=experiments/<id>.json [--size=tiny|default|full] [--cache-dir=DIR]\n"
+    "usage: sphnl_bench --experiment=experiments/<id>.json [--size=tiny|default|full] [--cache-dir=DIR] [--validate]\n"
+    "                   [--force-memory]\n"
     "                   [--benchmark_filter=REGEX --benchmark_out=FILE --benchmark_out_format=json\n"
     "                    --benchmark_repetitions=N --benchmark_min_time=SECONDS ...]\n"
     "Registers the experiment's sweep for that size; every benchmark iteration times `window_steps`\n"
-    "steps from the cached developed flow (see docs/CONTRACTS.md).\n";
+    "steps from the cached developed flow (see docs/CONTRACTS.md).\n"
+    "--validate only checks the experiment file (unknown or duplicate keys, sweep axes, values) and exits.\n"
+    "A sweep whose memory estimate exceeds the available memory is refused unless --force-memory.\n";
 
 std::string cpu_model() {
   std::ifstream in("/proc/cpuinfo");
@@ -33,15 +43,55 @@ std::string cpu_model() {
   return "unknown";
 }
 
+/// The largest memory estimate over the sweep's points (each benchmark runs
+/// on its own, but the developed flows stay cached in memory: summed per N).
+sphnl::MemoryEstimate sweep_memory(const std::string& family, const json& sweep) {
+  sphnl::MemoryEstimate worst;
+  for (const sb::Point& p : sb::cross_product(sweep, {})) {
+    sphnl::MemoryEstimate e;
+    const long n = p.at("n").get<long>();
+    if (family == "search") {
+      // full lists of a cubic lattice with R = 2.6 spacings: 4/3 pi 2.6^3 = 74 entries a point
+      e = sphnl::estimate_search_memory(static_cast<std::uint64_t>(n), static_cast<std::uint64_t>(n) * 74);
+    } else {
+      sphnl::RunConfig c;
+      c.particles = n;
+      if (p.count("list")) c.list = sphnl::config_from_json({{"list", p.at("list")}}).list;
+      if (p.count("kgc")) c.kgc = sphnl::config_from_json({{"kgc", p.at("kgc")}}).kgc;
+      e = sphnl::estimate_run_memory(c);
+      e.bytes += static_cast<double>(n) * 200;  // the cached developed flow beside the timed copy
+      e.detail += " + the cached flow";
+    }
+    if (e.bytes > worst.bytes) worst = e;
+  }
+  return worst;
+}
+
 int fail(const std::string& msg) {
   std::fprintf(stderr, "sphnl_bench: %s\n%s", msg.c_str(), kUsage);
   return 2;
 }
 
+/// The benchmark dies with its parent (experiments/run.py, make): killed
+/// alone (kill -9, the OOM killer) the driver would otherwise leave it
+/// running, possibly for an hour of snapshot building, beside the rerun.
+/// Linux sends the signal when the parent *thread* that started us exits,
+/// so a driver must start sphnl_bench from a thread that outlives it.
+void die_with_parent(pid_t parent) {
+  if (::prctl(PR_SET_PDEATHSIG, SIGKILL) != 0) std::perror("sphnl_bench: prctl(PR_SET_PDEATHSIG)");
+  // The parent may have died before prctl: then we were already re-parented.
+  if (::getppid() != parent) {
+    std::fprintf(stderr, "sphnl_bench: the parent process has exited; stopping\n");
+    std::_Exit(1);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  die_with_parent(::getppid());
   sb::Options opt;
+  bool validate_only = false, force_memory = false;
   std::vector<char*> rest{argv[0]};
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -52,6 +102,8 @@ int main(int argc, char** argv) {
     if (const char* v = value("--experiment=")) opt.experiment_path = v;
     else if (const char* v2 = value("--size=")) opt.size = v2;
     else if (const char* v3 = value("--cache-dir=")) opt.cache_dir = v3;
+    else if (a == "--validate") validate_only = true;
+    else if (a == "--force-memory") force_memory = true;
     else if (a == "--help" || a == "-h") { std::fputs(kUsage, stdout); return 0; }
     else rest.push_back(argv[i]);
   }
@@ -61,14 +113,39 @@ int main(int argc, char** argv) {
 
   json experiment;
   try {
-    std::ifstream in(opt.experiment_path);
-    if (!in) return fail("cannot read experiment file '" + opt.experiment_path + "'");
-    experiment = json::parse(in);
+    experiment = sphnl::load_experiment(opt.experiment_path);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sphnl_bench: invalid experiment file:\n%s\n", e.what());
+    return 2;
+  }
+  if (validate_only) {
+    std::printf("%s: valid\n", opt.experiment_path.c_str());
+    return 0;
+  }
+  try {
     if (experiment.contains("uses") && !experiment["uses"].is_null())
       return fail("experiment '" + opt.experiment_path + "' only draws from '" + experiment["uses"].get<std::string>() +
                   "'; run that one");
     const std::string family = experiment.at("benchmark").get<std::string>();
     const json& sweep = experiment.at("sweep").at(opt.size);
+    // Before anything is built: a snapshot that cannot be cached would be
+    // developed (minutes to an hour) and then lost.
+    if (family != "search") {
+      try {
+        sphnl::ensure_writable_directory(opt.cache_dir);
+      } catch (const std::exception&) {
+        return fail("snapshot cache '" + opt.cache_dir + "' is not a writable directory (" + std::strerror(errno) +
+                    "); give --cache-dir=DIR a directory you can write to");
+      }
+    }
+    if (!force_memory) {
+      try {
+        sphnl::check_memory(sweep_memory(family, sweep), "the largest benchmark of this sweep", "--force-memory");
+      } catch (const sphnl::MemoryError& e) {
+        std::fprintf(stderr, "sphnl_bench: %s\n", e.what());
+        return 2;
+      }
+    }
     if (family == "step") {
       const int window = experiment.at("window_steps").at(opt.size).get<int>();
       if (window < 1) return fail("window_steps must be >= 1");
@@ -95,6 +172,10 @@ int main(int argc, char** argv) {
   benchmark::AddCustomContext("sphnl_gridders", "A=sliding vector, B=preconditioned vector, C=static matrix, D=linked list");
   benchmark::AddCustomContext("sphnl_lists", "cll=cell-linked list, vlc=classical Verlet list, vlx=Verlet list rebuilt on displacement");
 
+  // Debian's libbenchmark is built without NDEBUG, and Google Benchmark says
+  // so before every run; sphnl's own code is what is timed.
+  std::fprintf(stderr, "sphnl_bench: a \"Library was built as DEBUG\" warning below is about Google Benchmark's own "
+               "library (Debian's build), not about sphnl's timed code, which is a %s build\n", SPHNL_BUILD_TYPE);
   int bargc = static_cast<int>(rest.size());
   benchmark::Initialize(&bargc, rest.data());
   if (benchmark::ReportUnrecognizedArguments(bargc, rest.data())) return 2;

@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "bench_common.hpp"
+#include "bench_guard.hpp"
 #include "sphnl/orderings/cell_order.hpp"
 #include "sphnl/timer.hpp"
 
@@ -18,7 +19,9 @@ void register_cellindex_benchmarks(const json& sweep, const Options& opt) {
   for (const Point& p : cross_product(sweep, axes)) {
     json j = {{"particles", p.at("n")}, {"cell_order", p.at("order")}, {"progress", false}};
     const RunConfig cfg = config_from_json(j);
-    benchmark::RegisterBenchmark(benchmark_name("cellindex", p, axes).c_str(), [cfg, cache = opt.cache_dir](benchmark::State& st) {
+    const std::string name = benchmark_name("cellindex", p, axes);
+    benchmark::RegisterBenchmark(name.c_str(), [cfg, cache = opt.cache_dir, name](benchmark::State& st) {
+     guarded(name, [&] {
       const Simulation& flow = developed_flow(cfg.particles, cfg.lattice, cfg.h_coefficient, cache);
       const ParticleSet& ps = flow.particles();
       const CellGrid grid(flow.case_info().domain, 2.0 * flow.physics().h());
@@ -42,6 +45,7 @@ void register_cellindex_benchmarks(const json& sweep, const Options& opt) {
       st.counters["s_per_particle"] = seconds / static_cast<double>(passes * ps.size());
       st.counters["cell_keys"] = static_cast<double>(order->num_keys());
       st.counters["cells"] = static_cast<double>(grid.num_cells());
+     });
     });
   }
 }

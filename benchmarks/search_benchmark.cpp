@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "bench_common.hpp"
+#include "bench_guard.hpp"
 #include "sphnl/neighbours/neighbour_search.hpp"
 
 namespace sphnl::bench {
@@ -20,7 +21,9 @@ void register_search_benchmarks(const json& sweep) {
     so.order = cfg.cell_order;
     so.reorder = cfg.reorder;
     const long n = p.at("n").get<long>();
-    benchmark::RegisterBenchmark(benchmark_name("search", p, axes).c_str(), [so, n](benchmark::State& st) {
+    const std::string name = benchmark_name("search", p, axes);
+    benchmark::RegisterBenchmark(name.c_str(), [so, n, name](benchmark::State& st) {
+     guarded(name, [&] {
       const long side = std::lround(std::cbrt(static_cast<double>(n)));
       std::vector<double> x, y, z;
       for (long k = 0; k < side; ++k)
@@ -44,6 +47,7 @@ void register_search_benchmarks(const json& sweep) {
       st.counters["s_build"] = search.times().build;
       st.counters["s_search"] = search.times().search;
       st.counters["bytes"] = static_cast<double>(search.bytes() + lists.bytes());
+     });
     })->Unit(benchmark::kMillisecond)->UseRealTime();
   }
 }

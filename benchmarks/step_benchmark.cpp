@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "bench_common.hpp"
+#include "bench_guard.hpp"
 
 namespace sphnl::bench {
 
@@ -78,13 +79,10 @@ void run_point(benchmark::State& state, RunConfig cfg, int window, const std::st
 void register_step_benchmarks(const json& sweep, int window, const Options& opt) {
   for (const Point& p : cross_product(sweep, kAxes)) {
     const RunConfig cfg = config_for(p);  // validates every value before anything runs
-    benchmark::RegisterBenchmark(benchmark_name("step", p, kAxes).c_str(),
-                                 [cfg, window, cache = opt.cache_dir](benchmark::State& st) {
-                                   try {
-                                     run_point(st, cfg, window, cache);
-                                   } catch (const std::exception& e) {
-                                     st.SkipWithError(e.what());
-                                   }
+    const std::string name = benchmark_name("step", p, kAxes);
+    benchmark::RegisterBenchmark(name.c_str(),
+                                 [cfg, window, cache = opt.cache_dir, name](benchmark::State& st) {
+                                   guarded(name, [&] { run_point(st, cfg, window, cache); });
                                  })
         ->Unit(benchmark::kMillisecond);
   }

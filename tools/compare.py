@@ -13,13 +13,19 @@ Two figures per benchmark of experiments/compare.json (the new side's file is
 given to both binaries):
 
 * wall time per step (`s_per_step`), base and new runs alternated A B A B ...
-  in this one invocation, compared with a two-sided Mann-Whitney U test.
-  Reported, never gated: two runs of the same binary on these shared 2-core
-  machines differ by tens of percent.
+  in this one invocation, compared with a two-sided Mann-Whitney U test and a
+  95 % bootstrap interval of the change of medians; a change whose p >= 0.05
+  or whose interval holds 0 is printed "n.s." (not significant). Informative
+  only, never gated: each sample is one short window, and two runs of the
+  same binary on these shared 2-core machines differ by tens of percent.
 * instructions per step (callgrind `Ir` inside `sphnl::bench::timed_window`)
   of one window started from the cached snapshot: deterministic, so gated.
 
-Exit status: 0 no gated regression, 1 an Ir/step regression above the
+A commit between the base and HEAD that knowingly trades speed carries a
+line `perf-regression-accepted: <reason>` in its message; a regression is
+then reported with that reason and commit, and does not fail.
+
+Exit status: 0 no gated regression (or every one accepted), 1 an Ir/step regression above the
 threshold (benchmark, change and the valgrind commands to reproduce it are
 printed), 2 the comparison could not be made (unknown ref, base does not
 build, binary predates the benchmark interface, valgrind missing).
@@ -137,6 +143,35 @@ def mann_whitney_p(a, b):
     return float(mannwhitneyu(a, b, alternative="two-sided").pvalue)
 
 
+def bootstrap_change_interval(a, b, level=0.95, resamples=2000, seed=12345):
+    """Percentile bootstrap interval of (median(b) - median(a)) / median(a),
+    resampling each side with replacement; None with fewer than 2 samples a
+    side. Seeded: the same samples give the same interval."""
+    if len(a) < 2 or len(b) < 2:
+        return None
+    import random
+    rng = random.Random(seed)
+    changes = []
+    for _ in range(resamples):
+        ma = statistics.median(rng.choices(a, k=len(a)))
+        mb = statistics.median(rng.choices(b, k=len(b)))
+        if ma:
+            changes.append((mb - ma) / ma)
+    if not changes:
+        return None
+    changes.sort()
+    lo = changes[int((1 - level) / 2 * (len(changes) - 1))]
+    hi = changes[int((1 + level) / 2 * (len(changes) - 1))]
+    return [lo, hi]
+
+
+def time_significant(p_value, interval, alpha=0.05):
+    """A timing change counts only when the U test rejects equality and the
+    bootstrap interval excludes zero."""
+    return p_value is not None and p_value < alpha and interval is not None and \
+        (interval[0] > 0 or interval[1] < 0)
+
+
 def relative_change(base, new):
     """(new - base) / base, or None when base is zero."""
     return None if not base else (new - base) / base
@@ -145,9 +180,12 @@ def relative_change(base, new):
 def time_figures(base_samples, new_samples):
     """Medians of s_per_step, their relative change and the U-test p-value."""
     base_med, new_med = statistics.median(base_samples), statistics.median(new_samples)
+    p = mann_whitney_p(base_samples, new_samples)
+    interval = bootstrap_change_interval(list(base_samples), list(new_samples))
     return {"base_median_s": base_med, "new_median_s": new_med,
             "change": relative_change(base_med, new_med),
-            "p_value": mann_whitney_p(base_samples, new_samples),
+            "p_value": p, "change_interval_95": interval,
+            "significant": time_significant(p, interval),
             "base_samples": list(base_samples), "new_samples": list(new_samples)}
 
 
@@ -184,8 +222,26 @@ def compare(times, irs, threshold_pct, reproduce=None):
             "regressions": regressions, "verdict": "regression" if regressions else "pass"}
 
 
+ACCEPT_RE = re.compile(r"^\s*perf-regression-accepted:\s*(\S.*?)\s*$", re.M)
+
+
+def acceptances(commits):
+    """[{'sha', 'reason'}] of the `perf-regression-accepted: <reason>` lines in
+    the messages of `commits` ([(sha, message)], as git log gives them)."""
+    return [{"sha": sha, "reason": m.group(1)} for sha, msg in commits for m in ACCEPT_RE.finditer(msg)]
+
+
+def apply_acceptances(report, accepted):
+    """Marks the report's regressions as accepted when a commit between base
+    and HEAD says so; the regressions stay listed."""
+    report["accepted"] = accepted
+    if report["regressions"] and accepted:
+        report["verdict"] = "accepted"
+    return report
+
+
 def exit_code(report):
-    return 1 if report["regressions"] else 0
+    return 1 if report["regressions"] and not report.get("accepted") else 0
 
 
 # ============================================================= formatting
@@ -215,11 +271,23 @@ def fmt_change(c):
     return f"{pct:+.1e} %" if 0 < abs(pct) < 0.005 else f"{pct:+.2f} %"
 
 
+def fmt_time_change(t):
+    """'-18.0 % [-35, +4] n.s.': the change of medians, its 95 % bootstrap
+    interval, and n.s. unless it is significant."""
+    if not t or t.get("change") is None:
+        return "–"
+    text = fmt_change(t["change"])
+    iv = t.get("change_interval_95")
+    if iv:
+        text += f" [{iv[0] * 100:+.0f}, {iv[1] * 100:+.0f}]"
+    return text + ("" if t.get("significant") else " n.s.")
+
+
 def fmt_p(p):
     return "–" if p is None else f"{p:.3f}"
 
 
-TABLE_HEADER = ["benchmark", "time/step base", "time/step new", "Δ time", "p (U test)",
+TABLE_HEADER = ["benchmark", "time/step base", "time/step new", "Δ time [95 % CI] (informative)", "p (U test)",
                 "Ir/step base", "Ir/step new", "Δ Ir", "verdict"]
 
 
@@ -228,8 +296,10 @@ def table_rows(report):
     for r in report["benchmarks"]:
         t, i = r["time"] or {}, r["ir"] or {}
         verdict = ("REGRESSION" if i.get("regression") else "ok") if i else "not gated"
+        if verdict == "REGRESSION" and report.get("accepted"):
+            verdict = "accepted"
         rows.append([r["name"], fmt_seconds(t.get("base_median_s")),
-                     fmt_seconds(t.get("new_median_s")), fmt_change(t.get("change")),
+                     fmt_seconds(t.get("new_median_s")), fmt_time_change(t),
                      fmt_p(t.get("p_value")), fmt_count(i.get("base_per_step")),
                      fmt_count(i.get("new_per_step")), fmt_change(i.get("change")), verdict])
     return rows
@@ -252,9 +322,9 @@ def format_text(report):
     widths = [max(len(row[c]) for row in rows) for c in range(len(TABLE_HEADER))]
     lines = [f"base: {side_label(report.get('base'))}",
              f"new:  {side_label(report.get('new'))}",
-             f"time: median of {report.get('reps', '?')} alternated runs per side "
-             "(reported, never gated); Ir: callgrind, one window (gated at "
-             f"+{report['threshold_pct']:g} %)", ""]
+             f"time: median of {report.get('reps', '?')} alternated runs per side, 95 % bootstrap "
+             "interval, n.s. = not significant (informative, never gated); Ir: callgrind, "
+             f"one window (the gate, at +{report['threshold_pct']:g} %)", ""]
     for k, row in enumerate(rows):
         lines.append("  ".join(cell.ljust(w) if c == 0 else cell.rjust(w)
                                for c, (cell, w) in enumerate(zip(row, widths))))
@@ -276,8 +346,14 @@ def regression_lines(report):
         if r["reproduce"]:
             lines.append("  reproduce (base, then new; compare with callgrind_annotate):")
             lines += [f"    {cmd}" for cmd in r["reproduce"]]
-    if report["regressions"]:
-        lines.append(f"{len(report['regressions'])} gated regression(s): exit 1")
+    if report["regressions"] and report.get("accepted"):
+        for a in report["accepted"]:
+            lines.append(f"ACCEPTED by commit {a['sha'][:12]}: perf-regression-accepted: {a['reason']}")
+        lines.append(f"{len(report['regressions'])} gated regression(s), accepted by the commit message(s) "
+                     "above: exit 0")
+    elif report["regressions"]:
+        lines.append(f"{len(report['regressions'])} gated regression(s): exit 1 (a commit that trades "
+                     "speed on purpose says so with a line 'perf-regression-accepted: <reason>')")
     else:
         lines.append(f"no instruction-count regression above +{report['threshold_pct']:g} %: pass")
     return lines
@@ -285,12 +361,14 @@ def regression_lines(report):
 
 def format_markdown(report):
     """A Markdown section for a CI job summary ($GITHUB_STEP_SUMMARY)."""
-    icon = "❌ regression" if report["regressions"] else "✅ pass"
+    icon = ("⚠️ regression accepted" if report.get("accepted") else "❌ regression") \
+        if report["regressions"] else "✅ pass"
     out = [f"### Performance comparison: {icon}", "",
            f"* base: `{side_label(report.get('base'))}`",
            f"* new: `{side_label(report.get('new'))}`",
-           f"* time: median of {report.get('reps', '?')} alternated runs per side, two-sided "
-           "Mann–Whitney U p-value; reported, never gated (shared machines drift)",
+           f"* time: median of {report.get('reps', '?')} alternated runs per side, 95 % bootstrap "
+           "interval, two-sided Mann–Whitney U p-value; n.s. = not significant; informative, "
+           "never gated (shared machines drift)",
            f"* Ir: callgrind instructions per step of one window from a fixed snapshot; "
            f"gated at +{report['threshold_pct']:g} %", "",
            "| " + " | ".join(TABLE_HEADER) + " |",
@@ -339,9 +417,25 @@ def resolve_ref(repo, ref):
     """Full commit sha of `ref`; a clear error when git does not know it."""
     proc = git(repo, "rev-parse", "--verify", "--quiet", f"{ref}^{{commit}}", check=False)
     if proc.returncode != 0 or not proc.stdout.strip():
-        raise CompareError(f"unknown git ref '{ref}': not a branch, tag or commit of {repo} "
-                           "(run `git fetch` if it is a remote branch, e.g. BASE=origin/main)")
+        hint = "(run `git fetch` if it is a remote branch, e.g. BASE=origin/main)"
+        if re.search(r"[~^]", ref):
+            hint = ("(the history does not reach that far: a single-commit or shallow clone "
+                    "has no parent commit; fetch more history with `git fetch --deepen=1`)")
+        raise CompareError(f"unknown git ref '{ref}': not a branch, tag or commit of {repo} {hint}")
     return proc.stdout.strip()
+
+
+def commits_between(repo, base_sha, head="HEAD"):
+    """[(sha, message)] of the commits in base..head."""
+    proc = git(repo, "log", "--format=%H%x00%B%x01", f"{base_sha}..{head}", check=False)
+    if proc.returncode != 0:
+        return []
+    out = []
+    for record in proc.stdout.split("\x01"):
+        if "\x00" in record:
+            sha, msg = record.split("\x00", 1)
+            out.append((sha.strip(), msg))
+    return out
 
 
 def default_base(repo):
@@ -636,6 +730,7 @@ def run(args, progress):
         irs, reproduce = callgrind_all(sides, both, args.experiment, args.size, run_dir,
                                        args.valgrind, args.jobs, progress)
     report = compare(times, irs, args.threshold, reproduce)
+    apply_acceptances(report, acceptances(commits_between(args.repo, sides[0].info["sha"])))
     report.update(base=sides[0].info, new=sides[1].info, reps=args.reps,
                   experiment=str(args.experiment), size=args.size,
                   gated=not args.no_callgrind)

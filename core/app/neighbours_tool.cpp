@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "sphnl/config.hpp"
+#include "sphnl/memory_estimate.hpp"
 #include "sphnl/neighbours/neighbour_search.hpp"
 
 namespace sphnl {
@@ -32,11 +33,11 @@ bool parse_double(std::string_view s, double& v) {
   return ec == std::errc() && end == s.data() + s.size();
 }
 
-std::vector<std::string_view> split_fields(std::string_view line) {
+std::vector<std::string_view> split_fields(std::string_view line, char sep) {
   std::vector<std::string_view> f;
   std::size_t from = 0;
   for (;;) {
-    const std::size_t comma = line.find(',', from);
+    const std::size_t comma = line.find(sep, from);
     f.push_back(trim(line.substr(from, comma == std::string_view::npos ? std::string_view::npos : comma - from)));
     if (comma == std::string_view::npos) return f;
     from = comma + 1;
@@ -51,11 +52,9 @@ class AtomicFile {
     if (!f_) throw std::runtime_error("cannot write '" + tmp_ + "': " + std::strerror(errno) + " (check the --out/--pairs directory)");
     buf_.reserve(1 << 20);
   }
-  ~AtomicFile() {
-    if (f_) {
-      std::fclose(f_);
-      std::remove(tmp_.c_str());
-    }
+  ~AtomicFile() {  // not committed: nothing of it stays behind
+    if (f_) std::fclose(f_);
+    if (f_ || closed_) std::remove(tmp_.c_str());
   }
   void put(std::string_view s) {
     buf_.append(s);
@@ -66,14 +65,20 @@ class AtomicFile {
     const auto r = std::to_chars(tmp, tmp + sizeof tmp, v);
     buf_.append(tmp, r.ptr);
   }
-  void commit() {
+  /// Writes everything out and closes the temporary (still under its temporary name).
+  void finish() {
+    if (!f_) return;
     flush();
     const bool ok = std::fclose(f_) == 0;
     f_ = nullptr;
-    if (!ok || std::rename(tmp_.c_str(), path_.c_str()) != 0) {
-      std::remove(tmp_.c_str());
+    if (!ok) throw std::runtime_error("cannot write '" + tmp_ + "': " + std::strerror(errno));
+    closed_ = true;
+  }
+  void commit() {
+    finish();
+    if (std::rename(tmp_.c_str(), path_.c_str()) != 0)
       throw std::runtime_error("cannot write '" + path_ + "': " + std::strerror(errno));
-    }
+    closed_ = false;
   }
 
  private:
@@ -84,6 +89,7 @@ class AtomicFile {
   }
   std::string path_, tmp_;
   std::FILE* f_;
+  bool closed_ = false;  // finished but not yet renamed
   std::string buf_;
 };
 
@@ -100,9 +106,23 @@ const char* gridder_title(GridderKind g) {
 constexpr const char* kUsage =
     "usage: sphnl neighbours --input points.csv --radius R [--gridder A|B|C|D]\n"
     "           [--cell-order sort_x|sort_xy|sort_xyz|hilbert] [--reorder 0|1]\n"
-    "           [--max-parts-in-cell M] --out counts.csv [--pairs pairs.csv]\n"
+    "           [--max-parts-in-cell M] --out counts.csv [--pairs pairs.csv] [--force-memory 1]\n"
     "Finds every pair of points closer than R (strictly). Input: CSV rows x,y,z (optional header).\n"
-    "Writes index,count for every point in input order; --pairs writes every pair i<j once.\n";
+    "Writes index,count for every point in input order; --pairs writes every pair i<j once.\n"
+    "The list entries are counted first; above the available memory it stops unless --force-memory 1.\n";
+
+}  // namespace
+
+/// The library's gridder C overflow message names `sphnl run`'s syntax;
+/// this tool's option is --max-parts-in-cell.
+std::string neighbours_syntax(std::string msg) {
+  const std::string from = "the config key max_parts_in_cell (e.g. --set max_parts_in_cell=";
+  if (const auto at = msg.find(from); at != std::string::npos)
+    msg.replace(at, from.size(), "--max-parts-in-cell (e.g. --max-parts-in-cell ");
+  return msg;
+}
+
+namespace {
 
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -114,6 +134,14 @@ PointCloud parse_points_csv(std::string_view text, const std::string& name) {
   PointCloud pc;
   std::size_t line_no = 0, from = 0;
   bool header_allowed = true;
+  // Comma-separated, or semicolon-separated as spreadsheets in many locales
+  // write it ("0;0;0"): the first non-empty line decides for the file.
+  char sep = ',';
+  {
+    const std::size_t first = text.find_first_not_of(" \t\r\n");
+    const std::string_view head = first == std::string_view::npos ? std::string_view{} : text.substr(first, text.find('\n', first) - first);
+    if (head.find(',') == std::string_view::npos && head.find(';') != std::string_view::npos) sep = ';';
+  }
   while (from < text.size()) {
     std::size_t nl = text.find('\n', from);
     if (nl == std::string_view::npos) nl = text.size();
@@ -121,7 +149,7 @@ PointCloud parse_points_csv(std::string_view text, const std::string& name) {
     from = nl + 1;
     ++line_no;
     if (line.empty()) continue;
-    const auto fields = split_fields(line);
+    const auto fields = split_fields(line, sep);
     double v[3] = {0, 0, 0};
     bool numeric[3] = {false, false, false};
     int numeric_count = 0;
@@ -135,7 +163,8 @@ PointCloud parse_points_csv(std::string_view text, const std::string& name) {
       if (numeric_count == 0) continue;  // a header such as "x,y,z"
     }
     if (fields.size() != 3)
-      throw PointFileError(where + "expected 3 columns (x,y,z), found " + std::to_string(fields.size()));
+      throw PointFileError(where + "expected 3 columns (x,y,z), found " + std::to_string(fields.size()) +
+                           " (columns are separated by '" + sep + "', as on the first line)");
     for (int k = 0; k < 3; ++k) {
       if (!numeric[k])
         throw PointFileError(where + "field " + std::to_string(k + 1) + " '" + std::string(fields[k]) +
@@ -165,7 +194,8 @@ PointCloud read_points_csv(const std::string& path) {
 int neighbours_main(int argc, char** argv) {
   try {
     std::map<std::string, std::string> opt;
-    const char* known[] = {"input", "radius", "gridder", "cell-order", "reorder", "max-parts-in-cell", "out", "pairs"};
+    const char* known[] = {"input", "radius", "gridder", "cell-order", "reorder", "max-parts-in-cell", "out", "pairs",
+                           "force-memory"};
     for (int a = 1; a < argc; ++a) {
       std::string arg = argv[a];
       if (arg == "-h" || arg == "--help") {
@@ -189,6 +219,12 @@ int neighbours_main(int argc, char** argv) {
     for (const char* req : {"input", "radius", "out"})
       if (!opt.count(req)) throw UsageError(std::string("missing --") + req);
 
+    bool force_memory = false;
+    if (opt.count("force-memory")) {
+      const std::string& f = opt["force-memory"];
+      if (f != "0" && f != "1") throw UsageError("--force-memory '" + f + "': allowed 0, 1");
+      force_memory = f == "1";
+    }
     SearchOptions so;
     double radius = 0;
     if (!parse_double(opt["radius"], radius) || !(radius > 0) || !std::isfinite(radius))
@@ -220,24 +256,41 @@ int neighbours_main(int argc, char** argv) {
     }
 
     const PointCloud pc = read_points_csv(opt["input"]);
+    if (!force_memory) {
+      // The entries are counted before the lists are allocated: first a cheap
+      // upper bound, the exact count only when the bound does not fit.
+      const double available = available_memory_bytes();
+      const double per_entry = 4, room = available - estimate_search_memory(pc.size(), 0).bytes;
+      const std::uint64_t limit = room > 0 ? static_cast<std::uint64_t>(room / per_entry) : 0;
+      std::uint64_t entries = count_neighbour_entries(pc.x, pc.y, pc.z, radius, limit, /*exact=*/false);
+      if (available > 0 && entries > limit) entries = count_neighbour_entries(pc.x, pc.y, pc.z, radius, limit);
+      check_memory(estimate_search_memory(pc.size(), entries),
+                   "this search (" + std::string(entries > limit ? "at least " : "") + std::to_string(entries) +
+                       " list entries, counted before allocating)",
+                   "--force-memory 1");
+    }
     NeighbourSearch search(so);
     NeighbourLists lists;
-    search.run(pc.x, pc.y, pc.z, radius, lists);
+    try {
+      search.run(pc.x, pc.y, pc.z, radius, lists);
+    } catch (const std::runtime_error& e) {
+      throw std::runtime_error(neighbours_syntax(e.what()));
+    }
     const std::size_t n = pc.size();
 
-    {  // counts, in input order
-      std::vector<std::uint32_t> counts;
-      lists.counts(counts);
-      AtomicFile f(opt["out"]);
-      f.put("index,count\n");
-      for (std::size_t i = 0; i < n; ++i) {
-        f.put(i);
-        f.put(",");
-        f.put(counts[i]);
-        f.put("\n");
-      }
-      f.commit();
+    // Both files are complete before either is renamed into place: a failed
+    // --pairs write must not leave a counts file of this run behind.
+    std::vector<std::uint32_t> counts;
+    lists.counts(counts);
+    AtomicFile counts_file(opt["out"]);
+    counts_file.put("index,count\n");
+    for (std::size_t i = 0; i < n; ++i) {
+      counts_file.put(i);
+      counts_file.put(",");
+      counts_file.put(counts[i]);
+      counts_file.put("\n");
     }
+    counts_file.finish();
     if (opt.count("pairs")) {  // every pair once, i < j, sorted
       std::vector<std::uint32_t> row_of(n), js;
       for (std::size_t r = 0; r < n; ++r) row_of[lists.point(r)] = static_cast<std::uint32_t>(r);
@@ -256,11 +309,22 @@ int neighbours_main(int argc, char** argv) {
         }
       }
       f.commit();
+      try {
+        counts_file.commit();
+      } catch (...) {
+        std::remove(opt["pairs"].c_str());
+        throw;
+      }
+    } else {
+      counts_file.commit();
     }
 
     const SearchTimes& t = search.times();
     const double entries = static_cast<double>(lists.num_entries());
-    const std::size_t bytes = search.bytes() + lists.bytes();
+    // In use, not capacity: the list buffer grows in steps and keeps slack.
+    const std::size_t list_bytes = static_cast<std::size_t>(lists.num_entries()) * sizeof(std::uint32_t) +
+                                   (lists.num_rows() + 1) * sizeof(std::uint64_t) + lists.num_rows() * sizeof(std::uint32_t);
+    const std::size_t bytes = search.bytes() + list_bytes;
     std::printf("points              %zu\n", n);
     std::printf("radius              %.15g\n", radius);
     std::printf("gridder             %s (%s)\n", to_string(so.gridder), gridder_title(so.gridder));
@@ -272,7 +336,8 @@ int neighbours_main(int argc, char** argv) {
     std::printf("list entries        %.0f (%.2f per point)\n", entries, n ? entries / static_cast<double>(n) : 0.0);
     std::printf("build time          %.6f s (cells, keys, gridder, reordering)\n", t.build);
     std::printf("search time         %.6f s (distance tests, writing the lists)\n", t.search);
-    std::printf("bytes used          %zu (search structures %zu + lists %zu)\n", bytes, search.bytes(), lists.bytes());
+    std::printf("bytes used          %zu (search structures %zu + lists %zu; list capacity %zu)\n", bytes,
+                search.bytes(), list_bytes, lists.bytes());
     std::printf("entries per second  %.4g (build + search), %.4g (search only)\n", entries / (t.build + t.search),
                 entries / t.search);
     return 0;

@@ -27,13 +27,17 @@ struct PointFileError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// Parses CSV text of `x,y,z` rows (an optional header line of non-numeric
+/// Parses CSV text of `x,y,z` rows (or `x;y;z`, decided by the first line; an optional header line of non-numeric
 /// names, blank lines ignored, CRLF accepted). Rejects non-numeric fields, a
 /// column count other than 3, NaN or infinite values and an empty point set,
 /// naming the line. `name` is used in messages.
 PointCloud parse_points_csv(std::string_view text, const std::string& name);
 /// Reads and parses a file (see parse_points_csv).
 PointCloud read_points_csv(const std::string& path);
+
+/// A library error message in this tool's syntax (gridder C's overflow
+/// names --max-parts-in-cell, not `sphnl run`'s --set max_parts_in_cell=).
+std::string neighbours_syntax(std::string msg);
 
 /// Entry point of `sphnl neighbours`; argv[0] is "neighbours". Returns the
 /// exit code (0 ok, 1 bad input or failure, 2 bad usage); errors go to stderr.

@@ -15,6 +15,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include "sphnl/config_file.hpp"
+#include "sphnl/memory_estimate.hpp"
+#include "sphnl/run_checks.hpp"
 #include "sphnl/output.hpp"
 #include "sphnl/timer.hpp"
 #include "sphnl_revision.hpp"
@@ -29,11 +32,7 @@ namespace {
 volatile std::sig_atomic_t g_interrupted = 0;
 extern "C" void on_interrupt(int) { g_interrupted = 1; }
 
-std::size_t peak_rss_bytes() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return static_cast<std::size_t>(u.ru_maxrss) * 1024;  // Linux reports KiB
-}
+std::size_t peak_rss_bytes() { return static_cast<std::size_t>(peak_resident_bytes()); }
 
 std::string format_duration(double s) {
   if (!std::isfinite(s) || s < 0) return "?";
@@ -86,7 +85,7 @@ std::string snapshot_stem(long step) {
 }  // namespace
 
 std::string run_usage() {
-  return "usage: sphnl run [--config FILE.json] [--set key=value]... [--out DIR] [--quiet]\n"
+  return "usage: sphnl run [--config FILE.json] [--set key=value]... [--out DIR] [--quiet] [--overwrite] [--force-memory]\n"
          "\n"
          "Runs the dam break with obstacle of Dominguez et al. 2011, section 2.2.\n"
          "  --config FILE   JSON object of config keys (see README.md, section 'Configuration')\n"
@@ -94,6 +93,8 @@ std::string run_usage() {
          "  --out DIR       output directory (default: sphnl-out); receives summary.json,\n"
          "                  snapshots/step_NNNNNN.vtu and .csv, snapshots.pvd\n"
          "  --quiet         no progress line\n"
+         "  --overwrite     replace the run already in DIR (else a DIR holding one is refused)\n"
+         "  --force-memory  run even when the memory estimate exceeds the available memory\n"
          "config keys: " +
          [] {
            std::string s;
@@ -117,14 +118,17 @@ RunOptions parse_run_options(int argc, char** argv) {
     }
     auto take_value = [&]() -> std::string {
       if (has_value) return value;
-      if (i + 1 >= argc) throw ConfigError("option " + arg + " needs a value");
+      // `--config --out x` must not read "--out" as the file name.
+      if (i + 1 >= argc || std::strncmp(argv[i + 1], "--", 2) == 0) throw ConfigError("option " + arg + " needs a value");
       return argv[++i];
     };
     if (arg == "--config") o.config_file = take_value();
     else if (arg == "--set") o.overrides.push_back(take_value());
     else if (arg == "--out") o.out_dir = take_value();
     else if (arg == "--quiet" && !has_value) o.quiet = true;
-    else throw ConfigError("unknown option '" + std::string(argv[i]) + "' of sphnl run; allowed: --config FILE, --set key=value, --out DIR, --quiet, --help");
+    else if (arg == "--overwrite" && !has_value) o.overwrite = true;
+    else if (arg == "--force-memory" && !has_value) o.force_memory = true;
+    else throw ConfigError("unknown option '" + std::string(argv[i]) + "' of sphnl run; allowed: --config FILE, --set key=value, --out DIR, --quiet, --overwrite, --force-memory, --help");
   }
   if (o.out_dir.empty()) throw ConfigError("--out needs a directory name");
   return o;
@@ -132,15 +136,7 @@ RunOptions parse_run_options(int argc, char** argv) {
 
 RunConfig load_run_config(const RunOptions& options) {
   json j = json::object();
-  if (!options.config_file.empty()) {
-    std::ifstream in(options.config_file);
-    if (!in) throw ConfigError("cannot read config file '" + options.config_file + "': " + std::strerror(errno));
-    j = json::parse(in, nullptr, /*allow_exceptions=*/false, /*ignore_comments=*/true);
-    if (j.is_discarded())
-      throw ConfigError("config file '" + options.config_file + "' is not valid JSON; expected an object such as {\"particles\": 31239, \"gridder\": \"B\"}");
-    if (!j.is_object())
-      throw ConfigError("config file '" + options.config_file + "' must hold a JSON object of key: value pairs");
-  }
+  if (!options.config_file.empty()) j = read_config_file(options.config_file);
   for (const auto& kv : options.overrides) apply_override(j, kv);
   return config_from_json(j);
 }
@@ -217,8 +213,18 @@ int run_main(int argc, char** argv) {
     std::cerr << "sphnl run: " << e.what() << "\n";
     return 2;
   }
+  if (!options.force_memory) {
+    try {
+      check_memory(estimate_run_memory(config), "this run", "--force-memory");
+    } catch (const MemoryError& e) {
+      std::cerr << "sphnl run: " << e.what() << "\n";
+      return 2;
+    }
+  }
+  if (const std::string w = threads_warning(config.threads); !w.empty()) std::cerr << "sphnl run: " << w << "\n";
   const fs::path out_dir(options.out_dir), snap_dir = out_dir / "snapshots";
   try {
+    prepare_output_folder(out_dir, options.overwrite);
     ensure_writable_directory(out_dir);
     ensure_writable_directory(snap_dir);
   } catch (const std::exception& e) {
@@ -230,6 +236,7 @@ int run_main(int argc, char** argv) {
   std::unique_ptr<Simulation> sim_ptr;
   try {
     sim_ptr = std::make_unique<Simulation>(config);
+    check_case_size(sim_ptr->case_info(), config);
   } catch (const ConfigError& e) {
     std::cerr << "sphnl run: " << e.what() << "\n";
     return 2;

@@ -16,6 +16,8 @@ struct RunOptions {
   std::vector<std::string> overrides; // `key=value`, applied in order after the file
   std::string out_dir = "sphnl-out";
   bool quiet = false;                 // no progress line
+  bool overwrite = false;             // replace the run already in out_dir
+  bool force_memory = false;          // run even when the memory estimate exceeds MemAvailable
 };
 
 /// Parses the arguments after `run`. Throws ConfigError naming the bad option.

@@ -118,6 +118,63 @@ class GateTest(unittest.TestCase):
         self.assertGreater(C.mann_whitney_p([1, 2, 3, 4, 5], [1.5, 2.5, 3.5, 4.5, 5.5]), 0.3)
 
 
+class TimingIntervalTest(unittest.TestCase):
+    def test_noise_is_labelled_not_significant(self):
+        # a docs-only commit: -18 % from one noisy window per sample
+        noisy = {NAME_B: ([2.0e-3, 2.6e-3, 1.7e-3, 2.4e-3, 1.9e-3], [1.7e-3, 2.5e-3, 1.6e-3, 2.2e-3, 1.5e-3])}
+        row = C.compare(noisy, {}, 2.0)["benchmarks"][0]
+        self.assertLess(row["time"]["change"], -0.1)
+        self.assertFalse(row["time"]["significant"])
+        lo, hi = row["time"]["change_interval_95"]
+        self.assertLess(lo, 0)
+        self.assertGreater(hi, 0)
+        cell = C.table_rows({"benchmarks": [row]})[0][3]
+        self.assertTrue(cell.startswith("-") and cell.endswith(" n.s."), cell)
+        self.assertIn("[", cell)
+
+    def test_a_clear_change_is_significant_with_its_interval(self):
+        slower = {NAME_B: ([1e-3, 1.02e-3, 0.98e-3, 1.01e-3, 0.99e-3], [3e-3, 3.1e-3, 2.9e-3, 3e-3, 3.2e-3])}
+        row = C.compare(slower, {}, 2.0)["benchmarks"][0]
+        self.assertTrue(row["time"]["significant"])
+        lo, hi = row["time"]["change_interval_95"]
+        self.assertTrue(1.5 < lo <= 2.0 <= hi < 2.5, (lo, hi))
+        self.assertNotIn("n.s.", C.table_rows({"benchmarks": [row]})[0][3])
+
+    def test_interval_is_reproducible_and_needs_two_samples(self):
+        a, b = [1.0, 1.1, 0.9], [1.2, 1.3, 1.1]
+        self.assertEqual(C.bootstrap_change_interval(a, b), C.bootstrap_change_interval(a, b))
+        self.assertIsNone(C.bootstrap_change_interval([1.0], b))
+
+
+class AcceptanceTest(unittest.TestCase):
+    COMMITS = [("1" * 40, "Faster lists\n\nnothing to see\n"),
+               ("2" * 40, "Exact KGC\n\nperf-regression-accepted: KGC now inverts the full 3x3 matrix (+4 % Ir)\n")]
+
+    def test_acceptance_line_is_read_from_the_commit_messages(self):
+        acc = C.acceptances(self.COMMITS)
+        self.assertEqual(acc, [{"sha": "2" * 40, "reason": "KGC now inverts the full 3x3 matrix (+4 % Ir)"}])
+        self.assertEqual(C.acceptances(self.COMMITS[:1]), [])
+        # only at the start of a line
+        self.assertEqual(C.acceptances([("3" * 40, "say perf-regression-accepted: no\n")]), [])
+
+    def test_accepted_regression_is_reported_and_passes(self):
+        report = C.apply_acceptances(C.compare(TIMES, irs(factor_b=1.05), 2.0), C.acceptances(self.COMMITS))
+        self.assertEqual(report["regressions"], [NAME_B])
+        self.assertEqual(report["verdict"], "accepted")
+        self.assertEqual(C.exit_code(report), 0)
+        report.update(reps=5)
+        text = C.format_text(report)
+        self.assertIn(f"REGRESSION: {NAME_B}: instructions per step +5.00 %", text)
+        self.assertIn("ACCEPTED by commit 222222222222: perf-regression-accepted: KGC now inverts", text)
+        self.assertIn("accepted", C.format_markdown(report).splitlines()[0])
+
+    def test_unaccepted_regression_still_fails_and_says_how_to_accept(self):
+        report = C.apply_acceptances(C.compare(TIMES, irs(factor_b=1.05), 2.0), C.acceptances(self.COMMITS[:1]))
+        self.assertEqual(C.exit_code(report), 1)
+        report.update(reps=5)
+        self.assertIn("perf-regression-accepted: <reason>", C.format_text(report))
+
+
 class OutputTest(unittest.TestCase):
     def report(self):
         rep = C.compare(TIMES, irs(factor_b=1.05), 2.0,
@@ -263,6 +320,23 @@ class EndToEndTest(unittest.TestCase):
         # the user's tree is untouched and the base worktree is registered once
         self.assertIn("1050", (self.repo / "benchmarks" / "bench.py").read_text(encoding="utf-8"))
         self.assertEqual(self.git("worktree", "list").count("worktree-"), 1)
+
+    def test_committed_regression_with_acceptance_line_passes(self):
+        base = self.git("rev-parse", "HEAD")
+        self.write_bench(1100)
+        self.commit("Slower on purpose\n\nperf-regression-accepted: exact arithmetic for the test\n")
+        code, out, err = self.compare("--base", base)
+        self.assertEqual(code, 0, err + out)
+        self.assertIn("ACCEPTED by commit", out)
+        self.assertIn("exact arithmetic for the test", out)
+        report = json.loads((self.root / "out" / "compare.json").read_text(encoding="utf-8"))
+        self.assertEqual(report["verdict"], "accepted")
+        self.assertEqual(len(report["regressions"]), 2)
+
+    def test_parent_of_a_single_commit_clone(self):
+        code, _, err = self.compare("--base", "HEAD~1")
+        self.assertEqual(code, 2)
+        self.assertIn("single-commit or shallow clone", err)
 
     def test_unknown_ref(self):
         code, _, err = self.compare("--base", "no-such-branch")

@@ -1,0 +1,23 @@
+#pragma once
+// The schema of experiment files (experiments/<id>.json, docs/CONTRACTS.md §1),
+// checked in this one place: sphnl_bench validates every file before it
+// registers a benchmark, and `sphnl_bench --validate` does only that.
+//
+// The tables of allowed keys and sweep axes are in experiment_schema.cpp
+// (kTopLevel, kAxes, kProtocol): a new key is one line there.
+#include <string>
+#include <vector>
+
+#include "sphnl/json_reader.hpp"
+
+namespace sphnl {
+
+/// Every problem of the experiment document, one message each, as
+/// "FILE:LINE:COL: key: what is wrong; allowed: ...". Empty when valid.
+std::vector<std::string> validate_experiment(const ParsedJson& doc);
+
+/// Reads `path` strictly (duplicate keys, syntax) and validates it; throws
+/// JsonFileError with every problem, one per line.
+nlohmann::json load_experiment(const std::string& path);
+
+}  // namespace sphnl

@@ -1,0 +1,121 @@
+// The strict JSON reader (duplicate keys, positions) and the experiment-file
+// schema: every shipped experiment is valid, and each kind of mistake gives a
+// message with the file, line, column, key and the allowed values.
+#include <filesystem>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "sphnl/experiment_schema.hpp"
+#include "sphnl/json_reader.hpp"
+
+namespace sphnl {
+namespace {
+
+#define EXPECT_HAS(text, part) EXPECT_NE(std::string(text).find(part), std::string::npos) << "in: " << (text)
+
+std::string all_errors(const std::string& text) {
+  const auto errors = validate_experiment(parse_json_strict(text, "e.json"));
+  std::string s;
+  for (const auto& e : errors) s += e + "\n";
+  return s;
+}
+
+const char* kValidStep = R"({
+  "id": "x", "benchmark": "step", "uses": null, "metric": "s_per_step",
+  "sweep": {
+    "tiny": {"n": [1500], "gridder": ["A"], "order": ["sort_x"], "reorder": [0], "list": ["cll"], "ns": [1], "kgc": [0], "threads": [1]},
+    "default": {"n": [1500], "gridder": ["A"], "order": ["sort_x"], "reorder": [0], "list": ["cll"], "ns": [1], "kgc": [0], "threads": [1]},
+    "full": {"n": [1500], "gridder": ["A"], "order": ["sort_x"], "reorder": [0], "list": ["cll"], "ns": [1], "kgc": [0], "threads": [1], "flow_time": [0.35]}
+  },
+  "window_steps": {"tiny": 3, "default": 10, "full": 20},
+  "protocol": {"tiny": {"min_rounds": 1, "max_rounds": 3}, "full": {"budget_s": 60, "target_halfwidth_pct": 2}},
+  "claims": [{"id": "c1", "band_reason": "anything goes here", "tolerance": {"reproduced": [1, null]}}]
+})";
+
+std::string with(std::string text, const std::string& from, const std::string& to) {
+  const auto at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  return text.replace(at, from.size(), to);
+}
+
+TEST(JsonReader, DuplicateKeyIsAnErrorWithBothLines) {
+  try {
+    parse_json_strict("{\n  \"a\": 1,\n  \"b\": {\"c\": 1},\n    \"a\": 2\n}", "f.json");
+    FAIL() << "duplicate key accepted";
+  } catch (const JsonFileError& e) {
+    EXPECT_HAS(e.what(), "f.json:4:5: duplicate key 'a' (first at line 2)");
+  }
+  // the same key in two different objects is fine
+  EXPECT_NO_THROW(parse_json_strict(R"({"a": {"k": 1}, "b": {"k": 2}})", "f.json"));
+}
+
+TEST(JsonReader, SyntaxErrorHasLineAndColumn) {
+  try {
+    parse_json_strict("{\n  \"a\": 1,\n  \"b\": ]\n}", "f.json");
+    FAIL() << "malformed JSON accepted";
+  } catch (const JsonFileError& e) {
+    EXPECT_HAS(e.what(), "f.json:3:8: not valid JSON");
+  }
+}
+
+TEST(JsonReader, BuildsTheSameValueAsNlohmann) {
+  const std::string text = R"({"a": [1, 2.5, "s", null, true, {"b": [[]]}], "c": {}, "d": -3, "e": 18446744073709551615})";
+  const ParsedJson p = parse_json_strict(text, "f.json");
+  EXPECT_EQ(p.value, nlohmann::json::parse(text));
+  EXPECT_EQ(p.where("/a/5/b"), "f.json:1:34");
+  EXPECT_EQ(p.where("/nope"), "f.json");
+}
+
+TEST(JsonReader, CommentsOnlyWhenAllowed) {
+  EXPECT_THROW(parse_json_strict("{\"a\": 1 // x\n}", "f.json"), JsonFileError);
+  EXPECT_EQ(parse_json_strict("{\"a\": 1 // x\n}", "f.json", true).value["a"], 1);
+}
+
+TEST(ExperimentSchema, ShippedExperimentsAreValid) {
+  int seen = 0;
+  for (const auto& f : std::filesystem::directory_iterator(std::string(SPHNL_SOURCE_DIR) + "/experiments")) {
+    if (f.path().extension() != ".json") continue;
+    ++seen;
+    EXPECT_NO_THROW(load_experiment(f.path().string())) << f.path();
+  }
+  EXPECT_GE(seen, 10);
+  EXPECT_EQ(all_errors(kValidStep), "");
+}
+
+TEST(ExperimentSchema, MisspelledSweepAxisIsNamedWithItsPlace) {
+  const std::string e = all_errors(with(kValidStep, R"("tiny": {"n": [1500], "gridder")", R"("tiny": {"n": [1500], "gridderr")"));
+  EXPECT_HAS(e, "e.json:4:27: sweep.tiny: unknown sweep axis 'gridderr' for benchmark 'step'; allowed: n, gridder,");
+  EXPECT_HAS(e, "sweep.tiny: missing sweep axis 'gridder'");
+}
+
+TEST(ExperimentSchema, UnknownTopLevelKey) {
+  EXPECT_HAS(all_errors(with(kValidStep, R"("metric")", R"("metrics")")), "e.json:2:49: top level: unknown key 'metrics'; allowed: id, figure, title,");
+}
+
+TEST(ExperimentSchema, DuplicateKeyInAnExperiment) {
+  EXPECT_THROW(parse_json_strict(with(kValidStep, R"("metric": "s_per_step")", R"("metric": "a", "metric": "b")"), "e.json"),
+               JsonFileError);
+}
+
+TEST(ExperimentSchema, WrongTypesAndValues) {
+  EXPECT_HAS(all_errors(with(kValidStep, R"("gridder": ["A"], "order")", R"("gridder": ["E"], "order")")), "sweep.tiny.gridder: config key 'gridder': invalid value \"E\"; allowed: A, B, C, D");
+  EXPECT_HAS(all_errors(with(kValidStep, R"("threads": [1]},)", R"("threads": 1},)")), "sweep.tiny.threads: is 1; expected a non-empty array of values");
+  EXPECT_HAS(all_errors(with(kValidStep, R"("flow_time": [0.35])", R"("flow_time": [0])")), "sweep.full.flow_time: value 0 is not allowed; expected a number > 0");
+  EXPECT_HAS(all_errors(with(kValidStep, R"("window_steps": {"tiny": 3)", R"("window_steps": {"tiny": 0)")), "window_steps.tiny: is 0; expected an integer >= 1");
+  EXPECT_HAS(all_errors(with(kValidStep, R"("benchmark": "step")", R"("benchmark": "steps")")), "benchmark: is \"steps\"; expected one of step, cellindex, search");
+  EXPECT_HAS(all_errors(with(kValidStep, R"("tiny": {"n")", R"("small": {"n")")), "sweep: unknown size 'small'; allowed: tiny, default, full");
+}
+
+TEST(ExperimentSchema, ProtocolAndClaims) {
+  EXPECT_HAS(all_errors(with(kValidStep, R"("min_rounds": 1)", R"("min_round": 1)")), "protocol.tiny: unknown key 'min_round'; allowed: min_rounds, max_rounds, reps_per_round");
+  EXPECT_HAS(all_errors(with(kValidStep, R"("budget_s": 60)", R"("budget_s": -1)")), "protocol.full.budget_s: is -1; expected a number > 0");
+  // one protocol for every size is allowed too
+  EXPECT_EQ(all_errors(with(kValidStep, R"({"tiny": {"min_rounds": 1, "max_rounds": 3}, "full": {"budget_s": 60, "target_halfwidth_pct": 2}})",
+                            R"({"reps_per_round": 2})")),
+            "");
+  EXPECT_HAS(all_errors(with(kValidStep, R"({"id": "c1", )", R"({)")), "claims[0]: needs an 'id'");
+}
+
+}  // namespace
+}  // namespace sphnl
