@@ -21,7 +21,7 @@
 #include "sphnl/config_file.hpp"
 #include "sphnl/experiment_schema.hpp"
 #include "sphnl/json_reader.hpp"
-#include "sphnl/neighbours_tool.hpp"
+#include "neighbours_tool.hpp"
 
 namespace fs = std::filesystem;
 

@@ -12,7 +12,7 @@
 
 #include "sphnl/config.hpp"
 #include "sphnl/config_file.hpp"
-#include "sphnl/run.hpp"
+#include "run.hpp"
 
 namespace fs = std::filesystem;
 
