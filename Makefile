@@ -48,12 +48,12 @@ test: build
 	SPHNL_BUILD_DIR=$(abspath $(BUILD)) $(PYTHON) -m unittest discover -s tests/python -v
 
 reproduce: build
-	$(PYTHON) experiments/run.py --size $(SIZE) --run-id $(RUN_ID) --bench $(BUILD)/benchmarks/sphnl_bench $(if $(MAX_N),--max-n $(MAX_N))
-	$(PYTHON) plots/report.py results/$(RUN_ID)
+	$(PYTHON) -m experiments.run --size $(SIZE) --run-id $(RUN_ID) --bench $(BUILD)/benchmarks/sphnl_bench $(if $(MAX_N),--max-n $(MAX_N))
+	$(PYTHON) -m plots.report results/$(RUN_ID)
 	@echo "sphnl: report: results/$(RUN_ID)/REPRODUCTION.md"
 
 figures: deps
-	$(PYTHON) plots/report.py $(RESULTS)
+	$(PYTHON) -m plots.report $(RESULTS)
 
 bench: build
 	$(BUILD)/benchmarks/sphnl_bench $(ARGS)

@@ -1,7 +1,9 @@
 #!/usr/bin/python3
 """Run the experiments of experiments/*.json with sphnl_bench (docs/CONTRACTS.md).
 
-    /usr/bin/python3 experiments/run.py --size default [--run-id ID] [--only fig06,fig14]
+    /usr/bin/python3 -m experiments.run --size default [--run-id ID] [--only fig06,fig14]
+
+(from the repository root, or with PYTHONPATH set to it: harness/__init__.py)
 
 Writes results/<run-id>/<id>.json (raw Google Benchmark JSON, renamed into
 place only when complete) and results/<run-id>/machine.json. Resumable: an
@@ -23,9 +25,10 @@ import sys
 import threading
 import time
 
+from harness import results as R
+from harness.fsio import write_atomic
+
 REPO = pathlib.Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO / "plots"))
-import results as R  # noqa: E402  (plots/results.py: the results format)
 
 AGGREGATE = re.compile(r"_(mean|median|stddev|cv)$")
 
@@ -138,6 +141,15 @@ def restrict_n(exp, size, keep):
     return out
 
 
+def bench_env(args):
+    """Environment of the bench: a .py stand-in (tests/python/fake_bench.py)
+    imports the harness package, so it gets the repository root on PYTHONPATH."""
+    env = dict(os.environ)
+    if args.bench.suffix == ".py":
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO), env.get("PYTHONPATH")]))
+    return env
+
+
 def bench_command(args, exp, out_tmp, exp_file):
     base = [sys.executable, str(args.bench)] if args.bench.suffix == ".py" else [str(args.bench)]
     return base + [
@@ -188,7 +200,7 @@ def run_experiment(args, exp, out_path, label):
     exp_file = REPO / "experiments" / (exp["id"] + ".json")
     if exp.get("_restricted"):  # the bench reads its sweep from a file: give it the restricted one
         exp_file = out_path.with_name(f".{exp['id']}.experiment.json")
-        R.write_atomic(exp_file, json.dumps({k: v for k, v in exp.items() if k != "_restricted"},
+        write_atomic(exp_file, json.dumps({k: v for k, v in exp.items() if k != "_restricted"},
                                             indent=1) + "\n")
     cmd = bench_command(args, exp, tmp, exp_file)
     if args.verbose:
@@ -197,7 +209,7 @@ def run_experiment(args, exp, out_path, label):
     tail = collections.deque(maxlen=30)
     try:
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                text=True, bufsize=1, cwd=REPO)
+                                text=True, bufsize=1, cwd=REPO, env=bench_env(args))
     except OSError as e:
         raise RunError(f"cannot start {args.bench}: {e}", 2) from None
 
@@ -231,7 +243,7 @@ def run_experiment(args, exp, out_path, label):
                 doc["benchmarks"] = keep + doc["benchmarks"]
                 doc["context"]["sphnl_merged"] = (f"{len(keep)} entries kept from an earlier run "
                                                   "of this experiment (other N)")
-                R.write_atomic(tmp, json.dumps(doc, indent=2) + "\n")
+                write_atomic(tmp, json.dumps(doc, indent=2) + "\n")
             missing = R.missing_in(doc, full_exp, size)
         except R.ResultsError as e:
             raise RunError(f"{exp['id']}: the bench exited 0 but its output is unusable: {e}") from None
@@ -343,7 +355,7 @@ def main(argv=None):
             raise RunError(f"benchmark binary {args.bench} not found or not executable; "
                            "build it first with `make build`", 2)
         out_dir.mkdir(parents=True, exist_ok=True)
-        R.write_atomic(out_dir / "machine.json",
+        write_atomic(out_dir / "machine.json",
                        json.dumps(machine_record(args, out_dir / "machine.json"), indent=2) + "\n")
         start, modelled = time.monotonic(), 0.0
         for k, (exp, out) in enumerate(todo, 1):
@@ -354,7 +366,7 @@ def main(argv=None):
                       f"{hms(left * (time.monotonic() - start) / modelled)} left", flush=True)
             run_experiment(args, exp, out, f"[{k}/{len(todo)}]")
             modelled += estimate_seconds(exp, args.size)
-        print(f"all done; draw the figures with: /usr/bin/python3 plots/report.py {out_dir}")
+        print(f"all done; draw the figures with: /usr/bin/python3 -m plots.report {out_dir}")
         return 0
     except (RunError, R.ResultsError) as e:
         print(f"error: {e}", file=sys.stderr)

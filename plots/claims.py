@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from results import improvement, medians, pick
+from harness.results import improvement, medians, pick
 
 MIN_N = 5000  # a claim about performance needs at least this N in the run
 CLAIMS = {}

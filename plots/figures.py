@@ -1,7 +1,7 @@
 """One function per figure of Domínguez et al. (2011), "Neighbour lists in SPH".
 
 Each `figNN(data, out)` takes the rows of the experiment the figure is drawn
-from (plots/results.load_run, filtered on `experiment`), writes
+from (harness.results.load_run, filtered on `experiment`), writes
 out/figNN.png and out/figNN.svg (headless, deterministic, atomic) and returns
 one sentence describing what the data show. `table1(data, exp)` returns the
 markdown of Table I and its sentence. Axes follow the paper: runtime or memory
@@ -19,7 +19,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 import numpy as np  # noqa: E402
 
-from results import improvement, medians, pick, write_atomic  # noqa: E402
+from harness.fsio import write_atomic  # noqa: E402
+from harness.results import improvement, medians, pick  # noqa: E402
 
 plt.rcParams.update({"svg.hashsalt": "sphnl", "savefig.dpi": 110, "axes.grid": True,
                      "grid.alpha": 0.3, "font.size": 10, "legend.fontsize": 9})

@@ -1,7 +1,9 @@
 #!/usr/bin/python3
 """Draw every figure, Table I and REPRODUCTION.md from a results folder alone.
 
-    /usr/bin/python3 plots/report.py results/<run-id> [--experiments-dir experiments]
+    /usr/bin/python3 -m plots.report results/<run-id> [--experiments-dir experiments]
+
+(from the repository root, or with PYTHONPATH set to it: harness/__init__.py)
 
 Writes RESULTS_DIR/figures/<id>.png|svg, RESULTS_DIR/table1.md and
 RESULTS_DIR/REPRODUCTION.md (machine, one data-derived sentence per figure,
@@ -15,11 +17,12 @@ import os
 import pathlib
 import sys
 
+from harness.fsio import write_atomic
+from harness.results import ResultsError, errors, load_experiments, load_run
+from plots import claims as C
+from plots import figures as F
+
 HERE = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-import claims as C  # noqa: E402
-import figures as F  # noqa: E402
-from results import ResultsError, errors, load_experiments, load_run, write_atomic  # noqa: E402
 
 TITLE = ("Reproduction of Domínguez, Crespo, Gómez-Gesteira and Marongiu (2011), "
          "\"Neighbour lists in smoothed particle hydrodynamics\"")

@@ -21,8 +21,8 @@ import random
 import sys
 import time
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "plots"))
-import results as R  # noqa: E402
+# experiments/run.py starts a .py bench with the repository root on PYTHONPATH.
+from harness import results as R
 
 GB_LINE = "-" * 100
 

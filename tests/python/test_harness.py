@@ -1,5 +1,5 @@
 """Tests of the Python reproduction harness: experiments/*.json,
-experiments/run.py, plots/results.py, plots/figures.py, plots/claims.py and
+experiments/run.py, harness/results.py, plots/figures.py, plots/claims.py and
 plots/report.py, driven by tests/python/fake_bench.py instead of sphnl_bench.
 
     MPLBACKEND=Agg /usr/bin/python3 -m unittest discover -s tests/python -v
@@ -17,15 +17,14 @@ import tempfile
 import unittest
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "plots"))
-sys.path.insert(0, str(REPO / "experiments"))
 os.environ.setdefault("MPLBACKEND", "Agg")
 
-import claims as C  # noqa: E402
-import figures as F  # noqa: E402
-import report  # noqa: E402
-import results as R  # noqa: E402
-import run  # noqa: E402
+# Run from the repository root (`make test`), which `python -m` puts on sys.path.
+from experiments import run  # noqa: E402
+from harness import results as R  # noqa: E402
+from plots import claims as C  # noqa: E402
+from plots import figures as F  # noqa: E402
+from plots import report  # noqa: E402
 
 FAKE = REPO / "tests" / "python" / "fake_bench.py"
 CONTRACT_NAME = "step/n:31239/gridder:B/order:sort_x/reorder:1/list:cll/ns:1/kgc:0/threads:1"
@@ -33,7 +32,7 @@ CONTRACT_NAME = "step/n:31239/gridder:B/order:sort_x/reorder:1/list:cll/ns:1/kgc
 
 def run_cli(*args, env=None):
     """experiments/run.py in a subprocess: (exit code, stdout, stderr)."""
-    p = subprocess.run([sys.executable, str(REPO / "experiments" / "run.py"), *map(str, args)],
+    p = subprocess.run([sys.executable, "-m", "experiments.run", *map(str, args)], cwd=REPO,
                        capture_output=True, text=True, env={**os.environ, **(env or {})})
     return p.returncode, p.stdout, p.stderr
 

@@ -22,7 +22,7 @@ class TinyPipeline(unittest.TestCase):
         with tempfile.TemporaryDirectory() as tmp:
             results = Path(tmp) / "results"
             run = subprocess.run(
-                [PYTHON, str(ROOT / "experiments" / "run.py"), "--size", "tiny", "--run-id", "e2e",
+                [PYTHON, "-m", "experiments.run", "--size", "tiny", "--run-id", "e2e",
                  "--results-dir", str(results), "--bench", str(bench), "--cache-dir", str(Path(tmp) / "cache")],
                 cwd=ROOT, capture_output=True, text=True, timeout=600)
             self.assertEqual(run.returncode, 0, run.stdout[-2000:] + run.stderr[-2000:])
@@ -44,7 +44,7 @@ class TinyPipeline(unittest.TestCase):
             self.assertIn("fig06", ran)
             self.assertIn("fig14", ran)
 
-            report = subprocess.run([PYTHON, str(ROOT / "plots" / "report.py"), str(run_dir)],
+            report = subprocess.run([PYTHON, "-m", "plots.report", str(run_dir)],
                                     cwd=ROOT, capture_output=True, text=True, timeout=600,
                                     env={**os.environ, "MPLBACKEND": "Agg"})
             self.assertEqual(report.returncode, 0, report.stdout[-2000:] + report.stderr[-2000:])

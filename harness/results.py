@@ -8,10 +8,8 @@ the fake bench start quickly.
 """
 import itertools
 import json
-import os
 import pathlib
 import re
-import tempfile
 
 SIZES = ("tiny", "default", "full")
 # Name segments of each benchmark family, in the order of CONTRACTS.md §2.
@@ -290,20 +288,3 @@ def errors(df):
         return []
     bad = df[df["error_occurred"]]
     return sorted(set(zip(bad["run_name"], bad["error_message"])))
-
-
-def write_atomic(path, data):
-    """Write text or bytes to `path` through a temp file in the same folder."""
-    path = pathlib.Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data.encode() if isinstance(data, str) else data)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
