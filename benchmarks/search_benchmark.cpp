@@ -21,6 +21,7 @@ void register_search_benchmarks(const json& sweep) {
     so.reorder = cfg.reorder;
     const long n = p.at("n").get<long>();
     benchmark::RegisterBenchmark(benchmark_name("search", p, axes).c_str(), [so, n](benchmark::State& st) {
+      const long sequence = next_run_sequence();
       const long side = std::lround(std::cbrt(static_cast<double>(n)));
       std::vector<double> x, y, z;
       for (long k = 0; k < side; ++k)
@@ -44,6 +45,7 @@ void register_search_benchmarks(const json& sweep) {
       st.counters["s_build"] = search.times().build;
       st.counters["s_search"] = search.times().search;
       st.counters["bytes"] = static_cast<double>(search.bytes() + lists.bytes());
+      st.counters["run_sequence"] = static_cast<double>(sequence);
     })->Unit(benchmark::kMillisecond)->UseRealTime();
   }
 }

@@ -40,6 +40,18 @@ class TinyPipeline(unittest.TestCase):
                 self.assertTrue(names, f"{exp_id}: no benchmarks")
                 self.assertFalse([b for b in doc["benchmarks"] if b.get("error_occurred")], f"{exp_id}: errors")
                 self.assertIn("sphnl_git_revision", doc["context"])
+                # The protocol with the real bench: 2 rounds at tiny, each with its
+                # executed order; GB's warm-up call of every configuration is discarded.
+                configs = len(set(names))
+                self.assertEqual([r["round"] for r in doc["sphnl_rounds"]], [0, 1], exp_id)
+                for r in doc["sphnl_rounds"]:
+                    self.assertEqual(sorted(r["order"]), sorted(b["run_name"] for b in doc["benchmarks"]
+                                                                if b["sphnl_round"] == r["round"]))
+                    self.assertEqual(r["warmups_discarded"], configs, exp_id)
+                self.assertIn(doc["sphnl_protocol"]["stop_reason"], ("target met", "max rounds"))
+                if spec["benchmark"] == "step":
+                    self.assertTrue(all(b["nl_bytes"] > 0 for b in doc["benchmarks"]), exp_id)
+                    self.assertTrue(all(b["snapshot_time"] >= 0.35 for b in doc["benchmarks"]), exp_id)
                 ran.append(exp_id)
             self.assertIn("fig06", ran)
             self.assertIn("fig14", ran)
