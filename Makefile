@@ -3,6 +3,7 @@
 #
 #   make test                      build and run every test (what CI runs)
 #   make reproduce [FULL=1] [MAX_N=n]  benchmarks -> results/<run-id>/ -> figures + REPRODUCTION.md
+#                  [FORCE_MERGE=reason]  add a part made by other code to an existing run (recorded)
 #   make figures RESULTS=dir       redraw figures and report from stored JSON only
 #   make bench ARGS="..."          run the benchmark binary with ARGS passed through
 #   make compare [BASE=ref] [THRESHOLD=2]   compare performance against another git ref
@@ -23,6 +24,9 @@ THRESHOLD ?= 2
 REPS ?= 5
 # MAX_N=n leaves out sweep points above n particles (a FULL run in parts).
 MAX_N ?=
+# FORCE_MERGE=reason merges into a run folder whose earlier parts were made by
+# other code (experiments/run.py refuses otherwise); the reason is shown in the report.
+FORCE_MERGE ?=
 COMPARE_OUT ?= .compare/out
 export MPLBACKEND := Agg
 
@@ -48,7 +52,7 @@ test: build
 	SPHNL_BUILD_DIR=$(abspath $(BUILD)) $(PYTHON) -m unittest discover -s tests/python -v
 
 reproduce: build
-	$(PYTHON) -m experiments.run --size $(SIZE) --run-id $(RUN_ID) --bench $(BUILD)/benchmarks/sphnl_bench $(if $(MAX_N),--max-n $(MAX_N))
+	$(PYTHON) -m experiments.run --size $(SIZE) --run-id $(RUN_ID) --bench $(BUILD)/benchmarks/sphnl_bench $(if $(MAX_N),--max-n $(MAX_N)) $(if $(FORCE_MERGE),--force-merge "$(FORCE_MERGE)")
 	$(PYTHON) -m plots.report results/$(RUN_ID)
 	@echo "sphnl: report: results/$(RUN_ID)/REPRODUCTION.md"
 
