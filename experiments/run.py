@@ -258,15 +258,15 @@ def resume_plan(args, exp, out_path):
 
 
 def metric_samples(entries, exp):
-    """{run name: [value per repetition]} of the experiment's metric (`metric`
+    """{run name: [[values of one round], ...]} of the experiment's metric (`metric`
     of the file, else s_per_step, else real time): what the adaptive stop
     must know precisely."""
     key = exp.get("metric", "s_per_step")
-    out = collections.defaultdict(list)
+    out = collections.defaultdict(lambda: collections.defaultdict(list))
     for e in entries:
         if not e.get("error_occurred"):
-            out[e["run_name"]].append(e.get(key, e.get("real_time")))
-    return out
+            out[e["run_name"]][e["sphnl_round"]].append(e.get(key, e.get("real_time")))
+    return {name: list(by_round.values()) for name, by_round in out.items()}
 
 
 class Bench:

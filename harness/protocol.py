@@ -91,23 +91,42 @@ def window_ok(exp, size):
 
 
 # ------------------------------------------------------------------ the stop
-def median_halfwidth_pct(values, confidence=0.95, resamples=2000, seed=0):
-    """Half-width of a percentile-bootstrap interval of the median, in percent
-    of the median. Minimal on purpose: only the adaptive stop uses it, and
-    harness/stats.py (the statistics of the report) may supersede it."""
+def median_halfwidth_pct(rounds, confidence=0.95, resamples=2000, seed=0):
+    """Half-width, in percent of the median, of a percentile-bootstrap
+    interval of the median of one configuration's repetitions, given as one
+    list per round. With several rounds each replicate draws the rounds with
+    replacement, then the repetitions inside each drawn round, so drift
+    between processes widens the interval as it should; with one round the
+    repetitions are resampled. A deliberately small copy of the round-level
+    resampling in harness/stats.py (the report's statistics), kept here so
+    the stop rule does not depend on the report's code."""
     import numpy as np
-    x = np.asarray([v for v in values if v == v], dtype=float)
-    if len(x) < 2 or not np.median(x):
+    groups = [np.asarray([v for v in r if v == v], dtype=float) for r in rounds]
+    groups = [g for g in groups if g.size]
+    pooled = np.concatenate(groups) if groups else np.array([])
+    if pooled.size < 2 or not np.median(pooled):
         return math.inf
     rng = np.random.default_rng(seed)
-    meds = np.median(rng.choice(x, size=(resamples, len(x)), replace=True), axis=1)
+    if len(groups) == 1:
+        meds = np.median(rng.choice(pooled, size=(resamples, pooled.size)), axis=1)
+    elif len({g.size for g in groups}) == 1:  # the usual case, vectorised: (B, rounds, reps)
+        table, (k, m) = np.stack(groups), (len(groups), groups[0].size)
+        drawn = rng.integers(0, k, size=(resamples, k, 1))
+        meds = np.median(table[drawn, rng.integers(0, m, size=(resamples, k, m))].reshape(resamples, -1),
+                         axis=1)
+    else:
+        meds = np.empty(resamples)
+        for b in range(resamples):
+            drawn = rng.integers(0, len(groups), size=len(groups))
+            meds[b] = np.median(np.concatenate([rng.choice(groups[k], size=groups[k].size)
+                                                for k in drawn]))
     lo, hi = np.quantile(meds, [(1 - confidence) / 2, (1 + confidence) / 2])
-    return 100.0 * (hi - lo) / 2 / abs(np.median(x))
+    return 100.0 * (hi - lo) / 2 / abs(np.median(pooled))
 
 
 def stop_reason(samples, proto, rounds_done, elapsed_s, round_s):
     """Why to stop after `rounds_done` rounds, or None to run another.
-    samples: {configuration: [values]}; round_s: the expected length of one
+    samples: {configuration: [[values of round 0], [round 1], ...]}; round_s: the expected length of one
     more round (the mean of those done). The target is checked first: a
     finished measurement is 'target met' even when the budget is also spent."""
     if rounds_done < proto["min_rounds"]:

@@ -346,19 +346,26 @@ class TestProtocolRules(unittest.TestCase):
             P.protocol_of(fake_exp(protocol={"tiny": fake_exp()["protocol"]}), "full")
 
     def test_bootstrap_halfwidth(self):
-        self.assertEqual(P.median_halfwidth_pct([2.0] * 9), 0.0)
-        self.assertEqual(P.median_halfwidth_pct([1.0]), math.inf)
+        self.assertEqual(P.median_halfwidth_pct([[2.0] * 3] * 3), 0.0)
+        self.assertEqual(P.median_halfwidth_pct([[1.0]]), math.inf)
         import numpy as np
         rng = np.random.default_rng(3)
-        narrow = P.median_halfwidth_pct(1 + 0.001 * rng.standard_normal(27))
-        wide = P.median_halfwidth_pct(1 + 0.05 * rng.standard_normal(27))
+        narrow = P.median_halfwidth_pct([1 + 0.001 * rng.standard_normal(9)])
+        wide = P.median_halfwidth_pct([1 + 0.05 * rng.standard_normal(9)])
         self.assertLess(narrow, 0.2)
         self.assertGreater(wide, 1.0)
+        # Quiet rounds that disagree: the drift between processes, which
+        # pooling the repetitions would hide, keeps the interval wide.
+        drift = [list(1 + 0.001 * rng.standard_normal(15) + shift) for shift in (0, 0.03, -0.03)]
+        self.assertGreater(P.median_halfwidth_pct(drift), 1.0)
+        self.assertLess(P.median_halfwidth_pct([sum(drift, [])]), 0.5)
+        uneven = [drift[0][:5], drift[1], drift[2][:9]]  # the general path
+        self.assertGreater(P.median_halfwidth_pct(uneven), 1.0)
 
     def test_stop_reason(self):
         proto = P.protocol_of(fake_exp(), "default")  # 3-5 rounds, +-1 %, 100 s
-        quiet = {"a": [1.0] * 9, "b": [2.0] * 9}
-        noisy = {"a": [1.0, 1.1, 0.9] * 3, "b": [2.0] * 9}
+        quiet = {"a": [[1.0] * 3] * 3, "b": [[2.0] * 3] * 3}
+        noisy = {"a": [[1.0, 1.1, 0.9]] * 3, "b": [[2.0] * 3] * 3}
         self.assertIsNone(P.stop_reason(quiet, proto, 2, 10, 5))  # below the minimum rounds
         self.assertEqual(P.stop_reason(quiet, proto, 3, 10, 5), P.STOP_TARGET)
         self.assertIsNone(P.stop_reason(noisy, proto, 3, 10, 5))  # another round fits
