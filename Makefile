@@ -8,6 +8,7 @@
 #   make bench ARGS="..."          run the benchmark binary with ARGS passed through
 #   make compare [BASE=ref] [THRESHOLD=2]   compare performance against another git ref
 #   make run ARGS="..."            run `sphnl run ARGS`
+#   make replicate A=results/x B=results/y   compare two runs claim by claim -> B/replication.md|json
 
 # Debian's interpreter: it can import python3-numpy/pandas/matplotlib/scipy,
 # while the first python3 on PATH may be a pyenv one that cannot.
@@ -30,7 +31,7 @@ FORCE_MERGE ?=
 COMPARE_OUT ?= .compare/out
 export MPLBACKEND := Agg
 
-.PHONY: all deps configure build test test-cpp test-python reproduce figures bench compare run clean
+.PHONY: all deps configure build test test-cpp test-python reproduce figures bench compare run replicate clean
 
 all: build
 
@@ -58,6 +59,10 @@ reproduce: build
 
 figures: deps
 	$(PYTHON) -m plots.report $(RESULTS)
+
+replicate: deps
+	@test -n "$(A)" -a -n "$(B)" || { echo "sphnl: make replicate needs two run folders: make replicate A=results/<run> B=results/<other run>" >&2; exit 2; }
+	$(PYTHON) -m plots.replicate "$(A)" "$(B)" $(if $(OUT),--out "$(OUT)")
 
 bench: build
 	$(BUILD)/benchmarks/sphnl_bench $(ARGS)

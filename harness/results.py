@@ -224,16 +224,21 @@ def entry_rows(doc, experiment):
     return rows
 
 
+# JSON files of a run folder that are not benchmark results (docs/CONTRACTS.md).
+NOT_RESULTS = {"machine.json", "claims.json", "replication.json"}
+
+
 def load_run(run_dir):
     """Every <experiment>.json of a run folder as one DataFrame, one row per
-    benchmark iteration entry (machine.json and hidden temp files ignored)."""
+    benchmark iteration entry (the report's own JSON, NOT_RESULTS, and hidden
+    temp files ignored)."""
     import pandas as pd
     run_dir = pathlib.Path(run_dir)
     if not run_dir.is_dir():
         raise ResultsError(f"{run_dir}: no such results folder")
     rows = []
     for path in sorted(run_dir.glob("*.json")):  # glob matches dot files too
-        if path.name != "machine.json" and not path.name.startswith("."):
+        if path.name not in NOT_RESULTS and not path.name.startswith("."):
             rows += entry_rows(read_benchmark_json(path), path.stem)
     df = pd.DataFrame(rows)
     if df.empty:

@@ -576,7 +576,7 @@ class TestFiguresAndReport(TempDirCase):
         with contextlib.redirect_stdout(io.StringIO()):
             self.assertEqual(report.main([str(run_dir)]), 0)
         text = (run_dir / "REPRODUCTION.md").read_text(encoding="utf-8")
-        self.assertIn("| Figure | Claim | Paper | Measured | Verdict | Note |", text)
+        self.assertIn("| Figure | Claim | Paper | Measured [95 % interval] | Verdict | Note |", text)
         self.assertIn("tiny run", text)
         self.assertIn("fig09 (Figure 9): `fig09.json` is missing", text)
         for exp in self.exps.values():
@@ -639,20 +639,19 @@ class TestClaims(unittest.TestCase):
                     for c in e["claims"] if c["id"] == claim_id)
 
     def test_verdict_intervals(self):
-        tol = {"reproduced": [3, None], "partly": [2, None]}
-        self.assertEqual(C.verdict(3.5, tol), "reproduced")
-        self.assertEqual(C.verdict(2.5, tol), "partly")
-        self.assertEqual(C.verdict(1.5, tol), "not reproduced")
-        self.assertEqual(C.verdict(float("nan"), tol), "not measured")
-        self.assertEqual(C.verdict(-13, {"reproduced": [-23, -3], "partly": [None, 0]}), "reproduced")
+        band = {"reproduced": [3, 6], "partly": [2, 10]}
+        self.assertEqual(C.verdict(3.5, 3.5, 3.5, band)[0], "reproduced")
+        self.assertEqual(C.verdict(2.5, 2.5, 2.5, band)[0], "partly")
+        self.assertEqual(C.verdict(1.5, 1.5, 1.5, band)[0], "not reproduced")
+        self.assertEqual(C.verdict(float("nan"), 0, 1, band)[0], "not measured")
 
     def test_claim_that_holds_is_reproduced(self):
         r = C.evaluate(self.claim("A_slower_3x"), self.gridder_data(slow_a=1.0))
         self.assertEqual(r["verdict"], "reproduced", r)
-        self.assertAlmostEqual(r["measured"], 7.5 / 1.25)
+        self.assertAlmostEqual(r["value"], 7.5 / 1.25)
         self.assertIn("paper: N = 150 000", r["note"])
-        self.assertEqual(C.evaluate(self.claim("A_superlinear"), self.gridder_data(1.0))["verdict"],
-                         "reproduced")
+        r = C.evaluate(self.claim("A_superlinear"), self.gridder_data(1.0))
+        self.assertAlmostEqual(r["value"], 1.0)  # t_A / t_B grows as N^1 in gridder_data
 
     def test_claim_that_fails_is_not_reproduced(self):
         r = C.evaluate(self.claim("A_slower_3x"), self.gridder_data(slow_a=0.15))
@@ -673,11 +672,20 @@ class TestClaims(unittest.TestCase):
                          "not measured")
 
     def test_nlnn_fit(self):
-        rows = [({"n": n, "gridder": "B", "reorder": 1}, {"s_per_step": 1e-7 * n * math.log(n)})
-                for n in (8000, 16000, 31239, 60000)]
+        """The claim is the exponent of the candidate pairs per step (N ln N: ~1.1),
+        with the interactions and the runtime per interaction beside it."""
+        rows = [({"n": n, "gridder": "B", "reorder": 1},
+                 {"s_per_step": 1e-7 * n ** 1.3, "candidates_per_particle": 10 * math.log(n),
+                  "interactions_per_particle": 5 * math.log(n)}) for n in (8000, 16000, 31239, 60000)]
         r = C.evaluate(self.claim("neighbour_search_NlnN"), synthetic(rows))
         self.assertEqual(r["verdict"], "reproduced", r)
-        self.assertIn("a·N·ln N fits better", r["note"])
+        self.assertAlmostEqual(r["value"], 1.105, places=2)
+        self.assertAlmostEqual(r["related"]["k_runtime"]["value"], 1.3, places=6)
+        self.assertLess(r["related"]["k_runtime_per_interaction"]["value"], 0.3)
+        quadratic = [(p, {**c, "candidates_per_particle": c["candidates_per_particle"] * p["n"]})
+                     for p, c in rows]
+        self.assertEqual(C.evaluate(self.claim("neighbour_search_NlnN"), synthetic(quadratic))["verdict"],
+                         "not reproduced")
 
     def test_regression_flips_a_claim_end_to_end(self):
         """fake_bench --fake-regress: slowing VL_X turns its gain into a loss."""
@@ -689,7 +697,7 @@ class TestClaims(unittest.TestCase):
             self.assertNotEqual(C.evaluate(c, R.load_run(good))["verdict"], "not reproduced")
             r = C.evaluate(c, R.load_run(bad))
             self.assertEqual(r["verdict"], "not reproduced")
-            self.assertLess(r["measured"], 0)
+            self.assertLess(r["ci_high"], 0)
 
 
 if __name__ == "__main__":

@@ -80,8 +80,12 @@ class TinyPipeline(unittest.TestCase):
             for phase in ("Neighbour List", "Force Computation", "System Update"):
                 self.assertIn(f"| {phase} |", table1)
             reproduction = (run_dir / "REPRODUCTION.md").read_text(encoding="utf-8")
-            self.assertIn("| Figure | Claim | Paper | Measured | Verdict | Note |", reproduction)
+            self.assertIn("| Figure | Claim | Paper | Measured [95 % interval] | Verdict | Note |", reproduction)
             self.assertIn(str(run_dir), reproduction)
+            claims = json.loads((run_dir / "claims.json").read_text(encoding="utf-8"))
+            ids = {c["id"] for e in experiments for c in json.loads(
+                (ROOT / "experiments" / f"{e}.json").read_text(encoding="utf-8"))["claims"]}
+            self.assertEqual({c["id"] for c in claims}, ids)
 
 
 if __name__ == "__main__":
