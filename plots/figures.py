@@ -195,8 +195,8 @@ def _gain_vs_n(data, out, fig_id, title, labels, ref, var, smooth=False, **equal
     curves = _med(data, **equal).curves(lambda m: _gain_curves(m, labels, ref, var))
     _draw(out, fig_id, title, N_LABEL, [("improvement in time (%)", curves, True)])
     n, text = _at_end(curves, " %", best="max")
-    return f"At N = {_fmt_n(n)}, improvement from largest [95 % interval]: {text}." + \
-        (" " + smooth_trend(curves, "ln N", np.log) if smooth else "")
+    return (f"At N = {_fmt_n(n)}, improvement from largest [95 % interval]: {text}. "
+            + (smooth_trend(curves, "ln N", np.log) if smooth else "")).rstrip()
 
 
 def smooth_trend(curves, xname, transform):
@@ -290,7 +290,7 @@ def fig14(data, out):
     best = [f"{_plain(lab)} {ys.max():.2g} % [{lo[ys.argmax()]:.2g}, {hi[ys.argmax()]:.2g}] at "
             f"n_s = {xs[ys.argmax()]:.0f}" for lab, xs, ys, lo, hi in curves]
     return (f"At N = {_fmt_n(n)} the largest improvements over CLL [95 % interval] are "
-            + " and ".join(best) + ". " + smooth_trend(curves, "n_s", lambda x: x))
+            + " and ".join(best) + ". " + smooth_trend(curves, "n_s", lambda x: x)).rstrip()
 
 
 def fig15(data, out):

@@ -200,13 +200,13 @@ def claim_note(r):
             f"t = {p['flow_time']:g} s: {fmt_ci(p['value'], p['ci_low'], p['ci_high'], r['unit'])}"
             for p in r["per_flow_time"]))
     if r.get("per_experiment"):
-        parts.append("pooled over " + ", ".join(
+        parts.append("each experiment alone: " + ", ".join(
             f"{p['experiment']} {fmt_ci(p['value'], p['ci_low'], p['ci_high'], r['unit'])}"
             for p in r["per_experiment"]))
     if r.get("resolve"):
         parts.append("to resolve: " + r["resolve"])
     if r["verdict"] != "not measured":
-        parts.append(f"{r['repetitions']} repetitions in {r['rounds']} rounds per configuration at least")
+        parts.append(f"at least {r['repetitions']} repetitions in {r['rounds']} resampled rounds per configuration")
     tol = r["tolerance"]
     parts.append(f"reproduced if {fmt_interval(tol['reproduced'], r['unit'])}, partly if "
                  f"{fmt_interval(tol['partly'], r['unit'])} ({r.get('band_reason', '')})")
