@@ -21,6 +21,8 @@ import os
 import pathlib
 import sys
 
+import numpy as np
+
 from harness import stats as S
 from harness.fsio import write_atomic
 from harness.results import NOT_RESULTS, ResultsError, errors, load_experiments, load_run
@@ -137,10 +139,13 @@ def rounds_section(run_dir):
         if proto.get("target_halfwidth_pct") is not None:
             desc += f" (target half-width {proto['target_halfwidth_pct']} %)"
         if loaded:
-            desc += "; **under load**: rounds " + ", ".join(
-                f"{r.get('round', '?')} (load {r.get('loadavg_before', '?')} → {r.get('loadavg_after', '?')}, "
-                f"steal {r.get('steal_pct', '?')} %, other busy cores {r.get('other_busy_cores', '?')})"
-                for r in loaded)
+            def most(key, pick=max):
+                vals = [v for r in loaded for v in np.ravel([r.get(key)]) if isinstance(v, (int, float))]
+                return f"{pick(vals):.2g}" if vals else "?"
+            desc += (f"; **under load**: {len(loaded)} of {len(rounds)} rounds ("
+                     + ", ".join(str(r.get("round", "?")) for r in loaded)
+                     + f"; load average up to {most('loadavg_before')}/{most('loadavg_after')} before/after, "
+                     f"other processes up to {most('other_busy_cores')} cores, steal up to {most('steal_pct')} %)")
         lines.append(desc)
     if old:
         lines.append(f"- {', '.join(f'`{o}`' for o in old)}: written before rounds were recorded "

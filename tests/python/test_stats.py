@@ -181,6 +181,25 @@ class TestTiesAndPooling(unittest.TestCase):
         self.assertEqual(r["repetitions"], 12)
 
 
+class TestFlowStates(unittest.TestCase):
+    def test_improvement_is_measured_per_state_and_pooled_as_their_mean(self):
+        claim = {"id": "vlx_gain_ns7_150k", "at_n": 8000, "min_n": 1000, "unit": "%",
+                 "tolerance": {"reproduced": [3.7, 7.7], "partly": [0, 12]}, "band_reason": "test"}
+        parts = []
+        for flow, vlx in ((0.2, 0.96), (0.35, 0.94), (0.5, 0.92)):
+            d = rows({("cll", 8000): [[1.0, 1.01], [0.99, 1.0], [1.0, 1.0]],
+                      ("vlx", 8000): [[vlx, vlx * 1.01], [vlx * 0.99, vlx], [vlx, vlx]]})
+            parts.append(d.assign(flow_time=flow))
+        r = C.evaluate(claim, pd.concat(parts))
+        per = {p["flow_time"]: p["value"] for p in r["per_flow_time"]}
+        self.assertEqual(sorted(per), [0.2, 0.35, 0.5])
+        self.assertAlmostEqual(per[0.2], 4.0, places=6)
+        self.assertAlmostEqual(per[0.5], 8.0, places=6)
+        self.assertAlmostEqual(r["value"], np.mean(list(per.values())), places=9)
+        self.assertLessEqual(r["ci_low"], r["value"])
+        self.assertGreaterEqual(r["ci_high"], r["value"])
+
+
 def run_fake(results_dir, seed):
     env = {**os.environ, "SPHNL_TEST_GIT_REVISION": "a" * 40, "SPHNL_TEST_GIT_DIRTY": "0", "FAKE_BENCH_SEED": str(seed)}
     p = subprocess.run([sys.executable, "-m", "experiments.run", "--size", "tiny", "--results-dir",
