@@ -201,8 +201,9 @@ def _gain_vs_n(data, out, fig_id, title, labels, ref, var, smooth=False, **equal
 
 def smooth_trend(curves, xname, transform):
     """Whether the intervals allow a smooth trend where the medians zig-zag:
-    a quadratic in `xname`, fitted to the medians weighted by 1 / interval
-    width, passes through how many of the intervals?"""
+    a low-order polynomial in `xname` (quadratic; cubic from 6 points),
+    fitted to the medians weighted by 1 / interval width, passes through how
+    many of the intervals?"""
     parts = []
     for label, xs, ys, lo, hi in curves:
         ok = np.isfinite(lo) & np.isfinite(hi)
@@ -210,14 +211,16 @@ def smooth_trend(curves, xname, transform):
             continue
         x, y = transform(xs[ok]), ys[ok]
         width = np.maximum(hi[ok] - lo[ok], 1e-9)
-        fit = np.polyval(np.polyfit(x, y, 2, w=1 / width), x)
+        degree = 3 if ok.sum() >= 6 else 2
+        fit = np.polyval(np.polyfit(x, y, degree, w=1 / width), x)
         inside = int(((fit >= lo[ok] - 1e-12) & (fit <= hi[ok] + 1e-12)).sum())
         signs = np.sign(np.diff(y))
         zigzag = int((signs[1:] * signs[:-1] < 0).sum())
         verdict = ("the intervals allow a smooth trend" if inside == ok.sum()
                    else f"the intervals do not allow a smooth trend ({ok.sum() - inside} point(s) off it)")
-        parts.append(f"{_plain(label)}: the medians change direction {zigzag} time(s); a quadratic in "
-                     f"{xname} passes through {inside} of {ok.sum()} intervals: {verdict}")
+        parts.append(f"{_plain(label)}: the medians change direction {zigzag} time(s); a "
+                     f"{'cubic' if degree == 3 else 'quadratic'} in {xname} passes through {inside} of "
+                     f"{ok.sum()} intervals: {verdict}")
     return ("Smoothness: " + "; ".join(parts) + ".") if parts else ""
 
 
