@@ -200,6 +200,21 @@ class TestFlowStates(unittest.TestCase):
         self.assertGreaterEqual(r["ci_high"], r["value"])
 
 
+class TestStoredResults(unittest.TestCase):
+    def test_old_format_results_still_give_intervals_and_verdicts(self):
+        """results/reference was written before rounds existed: it must load,
+        resample its repetitions and give every fig16 claim an interval."""
+        df = R.load_run(REPO / "results" / "reference")
+        exp = R.load_experiments(REPO / "experiments")["fig16"]
+        got = C.Evaluator(df, resamples=50, per_experiment_resamples=50).experiment(exp, exp["claims"])
+        for r in got:
+            self.assertNotEqual(r["verdict"], "not measured", r["id"])
+            self.assertLessEqual(r["ci_low"], r["value"] + 1e-9, r["id"])
+            self.assertGreaterEqual(r["ci_high"], r["value"] - 1e-9, r["id"])
+        gain = next(r for r in got if r["id"] == "vlx_gain_ns7_150k")
+        self.assertLess(gain["ci_low"], gain["ci_high"])
+
+
 def run_fake(results_dir, seed):
     env = {**os.environ, "SPHNL_TEST_GIT_REVISION": "a" * 40, "SPHNL_TEST_GIT_DIRTY": "0", "FAKE_BENCH_SEED": str(seed)}
     p = subprocess.run([sys.executable, "-m", "experiments.run", "--size", "tiny", "--results-dir",
