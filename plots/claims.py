@@ -542,8 +542,21 @@ def _flat(fn, c, med, states, layout):
     return np.asarray(vec, float)
 
 
+TIE, UNDECIDED = "tie", "undecided"
+
+
 def _classify(lo, hi, tie):
-    return 1 if lo > tie else -1 if hi < -tie else 0
+    """1: the claim holds at this point (the margin's interval above the tie
+    tolerance), -1: it fails (below minus the tolerance), TIE: the interval
+    lies within ±tie (equal within resolution: a tie is not a ranking, so the
+    point does not count for the claim), UNDECIDED: the interval straddles."""
+    if lo > tie:
+        return 1
+    if hi < -tie:
+        return -1
+    if tie > 0 and -tie <= lo and hi <= tie:
+        return TIE
+    return UNDECIDED
 
 
 def measure(fn, c, boot):
@@ -565,19 +578,18 @@ def measure(fn, c, boot):
     if is_margin:
         tie = float(c.get("tie_within", 0.0))
         idx = [i for i, (_, k, _) in enumerate(layout) if k == "margin"]
-        cls, ties = {}, []
+        cls = {}
         for i in idx:
             lo, hi = S.percentile_interval(reps[:, i], level)
             cls[i] = _classify(lo, hi, tie)
-            if cls[i] == 0:
-                ties.append(layout[i])
         if not idx:
             raise NotMeasured(f"no {outs[0][0].what} measured")
 
         def frac(ii):
+            """Point fraction, and its interval: undecided points may go either way."""
             wins = sum(cls[i] == 1 for i in ii)
-            undecided = sum(cls[i] == 0 for i in ii)
-            return sum(point[i] > 0 for i in ii) / len(ii), wins / len(ii), (wins + undecided) / len(ii)
+            undecided = sum(cls[i] == UNDECIDED for i in ii)
+            return sum(point[i] > tie for i in ii) / len(ii), wins / len(ii), (wins + undecided) / len(ii)
         value, lo, hi = frac(idx)
         for s in states:
             ii = [i for i in idx if layout[i][0] == s]
@@ -585,13 +597,22 @@ def measure(fn, c, boot):
                 v, a, z = frac(ii)
                 res["per_flow_time"].append({"flow_time": s, "value": v, "ci_low": a, "ci_high": z})
         what = outs[0][0].what
-        wins = sum(v == 1 for v in cls.values())
-        note = (f"{wins} of {len(idx)} {what}" + (f", {len(ties)} tie(s) (interval of the margin "
-                f"within ±{tie:g} of 0: {', '.join(_fmt_key(s, k) for s, _, k in ties)})" if ties else ""))
-        res["note"] = "; ".join(x for x in (outs[0][1], note) if x)
+
+        def where(kind):
+            return [layout[i] for i in idx if cls[i] == kind]
+        ties, undecided = where(TIE), where(UNDECIDED)
+        note = f"{sum(v == 1 for v in cls.values())} of {len(idx)} {what}"
         if ties:
-            res["ties"] = (f"{len(ties)} tie(s): more rounds can separate timings that tie, "
-                           "not memory (deterministic) or a margin truly within the tie tolerance")
+            note += (f"; {len(ties)} tie(s), margin within ±{tie:g}: not a ranking, not counted "
+                     f"({', '.join(_fmt_key(s, k) for s, _, k in ties)})")
+        if undecided:
+            note += (f"; {len(undecided)} undecided, the margin's interval contains "
+                     f"{'0' if tie == 0 else f'±{tie:g}'} ({', '.join(_fmt_key(s, k) for s, _, k in undecided)})")
+        res["note"] = "; ".join(x for x in (outs[0][1], note) if x)
+        if undecided:
+            res["ties"] = (f"more rounds: {len(undecided)} point(s) whose margin's interval straddles "
+                           f"{'0' if tie == 0 else 'the tie tolerance'} (the claim's interval is the range "
+                           "of fractions they allow)")
     else:
         vi = cols[("value", None)]
         pooled = np.mean(reps[:, vi], axis=1)

@@ -286,8 +286,9 @@ def build(run_dir, exp_dir, resamples=None):
             "wholly outside the partly band, *unresolved* otherwise (the note says what would resolve it), "
             "*not measured* when the run cannot support the claim (missing results, N < 5 000, too few "
             "points for a trend). Claims that count points (fractions) count a point only when the "
-            "interval of its margin excludes 0: overlapping intervals are a tie, and ties widen the "
-            "fraction's interval.",
+            "interval of its margin lies above 0 (above the claim's `tie_within` where it has one); a "
+            "margin within ±tie_within is a tie, not a ranking, and does not count; a point whose "
+            "interval straddles is undecided and widens the fraction's interval.",
             "", "## Summary", "",
             ", ".join(f"{counts.get(v, 0)} {v}" for v in VERDICTS) + f" (of {len(results)} claims); "
             f"{len(figures)} figures and tables drawn, {len(skipped)} skipped.", ""]
