@@ -3,12 +3,14 @@
 #
 #   make test                      build and run every test (what CI runs)
 #   make reproduce [FULL=1] [MAX_N=n]  benchmarks -> results/<run-id>/ -> figures + REPRODUCTION.md
+#                  [FORCE_MERGE=reason]  add a part made by other code to an existing run (recorded)
 #   make figures RESULTS=dir       redraw figures and report from stored JSON only
 #   make bench ARGS="..."          run the benchmark binary with ARGS passed through
 #   make compare [BASE=ref] [THRESHOLD=2]   compare performance against another git ref
 #   make test-sanitize             C++ tests under AddressSanitizer + UBSan (build-sanitize/)
 #   make test-portable             -march=x86-64-v2 build: no AVX-512, same results (build-portable/)
 #   make run ARGS="..."            run `sphnl run ARGS`
+#   make replicate A=results/x B=results/y   compare two runs claim by claim -> B/replication.md|json
 
 # Debian's interpreter: it can import python3-numpy/pandas/matplotlib/scipy,
 # while the first python3 on PATH may be a pyenv one that cannot.
@@ -25,6 +27,9 @@ THRESHOLD ?= 2
 REPS ?= 5
 # MAX_N=n leaves out sweep points above n particles (a FULL run in parts).
 MAX_N ?=
+# FORCE_MERGE=reason merges into a run folder whose earlier parts were made by
+# other code (experiments/run.py refuses otherwise); the reason is shown in the report.
+FORCE_MERGE ?=
 COMPARE_OUT ?= .compare/out
 export MPLBACKEND := Agg
 
@@ -35,7 +40,7 @@ PORTABLE_BUILD ?= build-portable
 # double CI time while exercising the same code the other tests cover.
 SANITIZE_SKIP ?= ^Validation\.
 
-.PHONY: all deps configure build test test-cpp test-python test-sanitize test-portable reproduce figures bench compare run clean
+.PHONY: all deps configure build test test-cpp test-python test-sanitize test-portable reproduce figures bench compare run replicate clean
 
 all: build
 
@@ -73,12 +78,16 @@ test-portable: build
 	$(PYTHON) tools/check_portable.py --native $(BUILD)/sphnl --portable $(PORTABLE_BUILD)/sphnl
 
 reproduce: build
-	$(PYTHON) experiments/run.py --size $(SIZE) --run-id $(RUN_ID) --bench $(BUILD)/benchmarks/sphnl_bench $(if $(MAX_N),--max-n $(MAX_N))
-	$(PYTHON) plots/report.py results/$(RUN_ID)
+	$(PYTHON) -m experiments.run --size $(SIZE) --run-id $(RUN_ID) --bench $(BUILD)/benchmarks/sphnl_bench $(if $(MAX_N),--max-n $(MAX_N)) $(if $(FORCE_MERGE),--force-merge "$(FORCE_MERGE)")
+	$(PYTHON) -m plots.report results/$(RUN_ID)
 	@echo "sphnl: report: results/$(RUN_ID)/REPRODUCTION.md"
 
 figures: deps
-	$(PYTHON) plots/report.py $(RESULTS)
+	$(PYTHON) -m plots.report $(RESULTS)
+
+replicate: deps
+	@test -n "$(A)" -a -n "$(B)" || { echo "sphnl: make replicate needs two run folders: make replicate A=results/<run> B=results/<other run>" >&2; exit 2; }
+	$(PYTHON) -m plots.replicate "$(A)" "$(B)" $(if $(OUT),--out "$(OUT)")
 
 bench: build
 	$(BUILD)/benchmarks/sphnl_bench $(ARGS)

@@ -1,6 +1,7 @@
 #pragma once
 // Shared pieces of sphnl_bench: the experiment sweep, the snapshot cache of the
 // developed flow, and the counters every step benchmark reports.
+#include <cstddef>
 #include <map>
 #include <string>
 #include <vector>
@@ -26,15 +27,37 @@ std::vector<Point> cross_product(const nlohmann::json& sweep, const std::vector<
 /// `family/key:value/...` with the axes in `axis_order`, then any others.
 std::string benchmark_name(const std::string& family, const Point& p, const std::vector<std::string>& axis_order);
 
-/// The state of the developed dam-break flow for this N (t = kDevelopTime),
-/// from the cache directory, made (with a CLL run on every core) when missing
-/// or stale. Kept in memory after the first call.
-const Simulation& developed_flow(long n, Lattice lattice, double h_coefficient, const std::string& cache_dir);
-inline constexpr double kDevelopTime = 0.35;  // s: the dam has collapsed, the front reaches the obstacle
+/// The flow state a benchmark starts from: the dam-break case (N, lattice,
+/// h coefficient) developed to `flow_time` seconds.
+struct FlowState {
+  long n = 0;
+  Lattice lattice = Lattice::bcc;
+  double h_coefficient = 0;
+  double flow_time = 0;
+};
+inline constexpr double kDefaultFlowTime = 0.35;  // s: the dam has collapsed, the front reaches the obstacle
+
+/// The developed flow `state`, from the cache directory, made when missing or
+/// stale with a CLL run on every core (the cache key holds everything that
+/// changes the snapshot: case, flow time and that thread count). When it must
+/// be made, the run from t = 0 also saves every missing one of `also_times`
+/// (the sweep's other flow times of the same case) that it passes, since a run
+/// to 0.5 s goes through 0.2 s. Kept in memory after the first call.
+const Simulation& developed_flow(const FlowState& state, const std::vector<double>& also_times,
+                                 const std::string& cache_dir);
 
 /// Runs `steps` steps: the region callgrind counts in `make compare`
-/// (--toggle-collect='sphnl::bench::timed_window*').
-void timed_window(Simulation& sim, int steps);
+/// (--toggle-collect='sphnl::bench::timed_window*'). `max_nl_bytes` becomes the
+/// largest neighbour-structure size seen after any step of the window (lists
+/// and grids grow and shrink as the flow moves; one sample at the end would
+/// miss the peak).
+void timed_window(Simulation& sim, int steps, std::size_t& max_nl_bytes);
+
+/// 0, 1, 2, ... for the successive benchmark-function calls of this process
+/// (Google Benchmark's discarded warm-up included): reported as the counter
+/// `run_sequence`, it records the order in which the repetitions actually ran
+/// under --benchmark_enable_random_interleaving.
+long next_run_sequence();
 
 void register_step_benchmarks(const nlohmann::json& sweep, int window, const Options& opt);
 void register_cellindex_benchmarks(const nlohmann::json& sweep, const Options& opt);

@@ -22,7 +22,9 @@ void register_cellindex_benchmarks(const json& sweep, const Options& opt) {
     const std::string name = benchmark_name("cellindex", p, axes);
     benchmark::RegisterBenchmark(name.c_str(), [cfg, cache = opt.cache_dir, name](benchmark::State& st) {
      guarded(name, [&] {
-      const Simulation& flow = developed_flow(cfg.particles, cfg.lattice, cfg.h_coefficient, cache);
+      const long sequence = next_run_sequence();
+      const Simulation& flow =
+          developed_flow({cfg.particles, cfg.lattice, cfg.h_coefficient, kDefaultFlowTime}, {}, cache);
       const ParticleSet& ps = flow.particles();
       const CellGrid grid(flow.case_info().domain, 2.0 * flow.physics().h());
       auto order = make_cell_order(cfg.cell_order);
@@ -45,6 +47,7 @@ void register_cellindex_benchmarks(const json& sweep, const Options& opt) {
       st.counters["s_per_particle"] = seconds / static_cast<double>(passes * ps.size());
       st.counters["cell_keys"] = static_cast<double>(order->num_keys());
       st.counters["cells"] = static_cast<double>(grid.num_cells());
+      st.counters["run_sequence"] = static_cast<double>(sequence);
      });
     });
   }

@@ -24,6 +24,7 @@ void register_search_benchmarks(const json& sweep) {
     const std::string name = benchmark_name("search", p, axes);
     benchmark::RegisterBenchmark(name.c_str(), [so, n, name](benchmark::State& st) {
      guarded(name, [&] {
+      const long sequence = next_run_sequence();
       const long side = std::lround(std::cbrt(static_cast<double>(n)));
       std::vector<double> x, y, z;
       for (long k = 0; k < side; ++k)
@@ -47,6 +48,7 @@ void register_search_benchmarks(const json& sweep) {
       st.counters["s_build"] = search.times().build;
       st.counters["s_search"] = search.times().search;
       st.counters["bytes"] = static_cast<double>(search.bytes() + lists.bytes());
+      st.counters["run_sequence"] = static_cast<double>(sequence);
      });
     })->Unit(benchmark::kMillisecond)->UseRealTime();
   }

@@ -1,7 +1,10 @@
 // The `step` family: a window of dam-break steps from the developed flow, for
-// one combination of N, gridder, cell order, reordering, list, n_s, KGC and
-// threads. Every Table I phase, memory and list counters are reported.
+// one combination of N, gridder, cell order, reordering, list, n_s, KGC,
+// threads and (optional axis) the flow time the window starts from. Every
+// Table I phase, memory and list counters are reported.
+#include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 #include "bench_common.hpp"
 #include "bench_guard.hpp"
@@ -13,7 +16,7 @@ using nlohmann::json;
 namespace {
 
 const std::vector<std::string> kAxes = {"n", "gridder", "order", "reorder", "list", "ns", "kgc", "threads", "lattice",
-                                        "h_coefficient"};
+                                        "h_coefficient", "flow_time"};
 
 RunConfig config_for(const Point& p) {
   json j = json::object();
@@ -29,22 +32,32 @@ RunConfig config_for(const Point& p) {
   take("kgc", "kgc");
   take("threads", "threads");
   take("lattice", "lattice");
-  take("h_coefficient", "h_coefficient");
+  take("h_coefficient", "h_coefficient");  // flow_time is not a run setting: it picks the snapshot
   j["progress"] = false;
   return config_from_json(j);
 }
 
-void run_point(benchmark::State& state, RunConfig cfg, int window, const std::string& cache_dir) {
-  const Simulation& start = developed_flow(cfg.particles, cfg.lattice, cfg.h_coefficient, cache_dir);
+double flow_time_of(const Point& p) {
+  if (!p.count("flow_time")) return kDefaultFlowTime;
+  const json& v = p.at("flow_time");
+  if (!v.is_number() || v.get<double>() <= 0)
+    throw std::runtime_error("sweep axis flow_time: " + v.dump() + " is not a positive time in seconds");
+  return v.get<double>();
+}
+
+void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const std::vector<double>& flow_times,
+               int window, const std::string& cache_dir) {
+  const long sequence = next_run_sequence();
+  const Simulation& start =
+      developed_flow({cfg.particles, cfg.lattice, cfg.h_coefficient, flow_time}, flow_times, cache_dir);
   cfg.dx = start.case_info().dx;  // the same case, without searching dx again
   Simulation sim(cfg);
-  std::size_t max_bytes = 0;
+  std::size_t max_bytes = 0;  // over every step of every window (CONTRACTS.md: nl_bytes)
   for (auto _ : state) {
     state.PauseTiming();
     sim.restore(start.particles(), start.time(), start.steps_done(), start.lost());
     state.ResumeTiming();
-    timed_window(sim, window);
-    max_bytes = std::max(max_bytes, sim.neighbour_bytes());
+    timed_window(sim, window, max_bytes);
   }
   // Counters describe the last window (every window times the same steps).
   const double steps = static_cast<double>(sim.steps_done() - start.steps_done());
@@ -72,17 +85,24 @@ void run_point(benchmark::State& state, RunConfig cfg, int window, const std::st
   c["list_bytes"] = static_cast<double>(s.max_list_bytes);
   c["forced_rebuilds"] = static_cast<double>(s.forced_rebuilds);
   c["skin_over_h"] = s.skin / sim.physics().h();
+  c["snapshot_time"] = start.time();  // at or just past the requested flow_time
+  c["run_sequence"] = static_cast<double>(sequence);
 }
 
 }  // namespace
 
 void register_step_benchmarks(const json& sweep, int window, const Options& opt) {
+  std::vector<double> flow_times;  // every snapshot one development run of a case can save
+  for (const Point& p : cross_product(sweep, kAxes)) flow_times.push_back(flow_time_of(p));
+  std::sort(flow_times.begin(), flow_times.end());
+  flow_times.erase(std::unique(flow_times.begin(), flow_times.end()), flow_times.end());
   for (const Point& p : cross_product(sweep, kAxes)) {
     const RunConfig cfg = config_for(p);  // validates every value before anything runs
     const std::string name = benchmark_name("step", p, kAxes);
+    const double flow_time = flow_time_of(p);
     benchmark::RegisterBenchmark(name.c_str(),
-                                 [cfg, window, cache = opt.cache_dir, name](benchmark::State& st) {
-                                   guarded(name, [&] { run_point(st, cfg, window, cache); });
+                                 [cfg, flow_time, flow_times, window, cache = opt.cache_dir, name](benchmark::State& st) {
+                                   guarded(name, [&] { run_point(st, cfg, flow_time, flow_times, window, cache); });
                                  })
         ->Unit(benchmark::kMillisecond);
   }

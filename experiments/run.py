@@ -1,33 +1,50 @@
 #!/usr/bin/python3
-"""Run the experiments of experiments/*.json with sphnl_bench (docs/CONTRACTS.md).
+"""Run the experiments of experiments/*.json with sphnl_bench under the
+measurement protocol of docs/MEASUREMENT.md (format: docs/CONTRACTS.md).
 
-    /usr/bin/python3 experiments/run.py --size default [--run-id ID] [--only fig06,fig14]
+    /usr/bin/python3 -m experiments.run --size default [--run-id ID] [--only fig06,fig14]
 
-Writes results/<run-id>/<id>.json (raw Google Benchmark JSON, renamed into
-place only when complete) and results/<run-id>/machine.json. Resumable: an
-experiment whose JSON already lists every sweep point is skipped unless --force;
-one that lacks some N is completed by running only those N and merging.
+(from the repository root, or with PYTHONPATH set to it: harness/__init__.py)
+
+Every experiment is measured in rounds, one bench process each, with its
+configurations' repetitions randomly interleaved and a discarded warm-up
+iteration per configuration; rounds are added after the protocol's minimum
+until every configuration's median is known to the experiment's target or its
+time budget ends. Writes results/<run-id>/<id>.json (Google Benchmark JSON
+with every repetition of every round, renamed into place only when complete)
+and results/<run-id>/machine.json. Resumable: an experiment whose JSON already
+lists every sweep point is skipped unless --force; one that lacks some N is
+completed by running only those N and merging, which is refused when the code
+differs from the earlier parts' unless --force-merge REASON.
 --max-n caps every sweep at N <= MAX_N (for a long FULL run done in parts).
 """
 import argparse
 import collections
 import copy
-import datetime
 import json
+import math
 import os
 import pathlib
-import platform
 import re
 import subprocess
 import sys
 import threading
 import time
 
+from harness import machine as M
+from harness import protocol as P
+from harness import results as R
+from harness.fsio import write_atomic
+
 REPO = pathlib.Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO / "plots"))
-import results as R  # noqa: E402  (plots/results.py: the results format)
 
 AGGREGATE = re.compile(r"_(mean|median|stddev|cv)$")
+# Pinning of the bench's OpenMP threads (recorded per round; a value already
+# in the environment is kept, so a user can choose another binding).
+PINNING = {"OMP_PROC_BIND": "close", "OMP_PLACES": "cores"}
+# GB 1.7.1 runs iterations for this long before the measured ones of each
+# configuration and discards them: one window, the first of the round.
+WARMUP_FLAG = "--benchmark_min_warmup_time=0.000001"
 
 
 class RunError(Exception):
@@ -38,32 +55,90 @@ class RunError(Exception):
 
 
 # ------------------------------------------------------------------ estimates
+def particle_step_seconds(n):
+    """CLL seconds per particle-step of one core: the medians of results/full
+    (0.75 us at N = 8 000, 1.4 us at 60 000, 2.2 us at 10^6: caches), times
+    1.12, the ratio of the bench time measured in results/full and
+    results/reference to this model's (both 0.89)."""
+    return 1.12 * max(0.3e-6, 0.75e-6 + 0.29e-6 * math.log(n / 8000))
+
+
 def step_seconds(p):
-    """Cost model of one step (seconds) used for the up-front estimate: the
-    brief's ~2 us per particle-step for CLL, plus gridder A's insertion shifts
-    (about n/2 4-byte moves per particle at ~10 GB/s when not reordered)."""
+    """Cost model of one step (seconds) of sweep point `p`, for the plan only:
+    once running, ETAs come from the rounds measured."""
     n = p["n"]
-    t = 2e-6 * n * (1.3 if p.get("reorder") == 0 else 1.0)
-    if p.get("gridder") == "A":
-        t += 2e-10 * n * n if p.get("reorder") == 0 else 1e-6 * n
-    if p.get("list", "cll") != "cll" and p.get("ns") == 1:
-        t *= 1.15
+    base = particle_step_seconds(n) * n
+    t = base * (1.05 if p.get("reorder") == 0 else 1.0)
+    if p.get("order", "sort_x") != "sort_x":
+        t *= 1.03
+    if p.get("gridder") == "A":  # insertion shifts when unsorted; 2x when reordered
+        t += 1.1e-10 * n * n if p.get("reorder") == 0 else base
+    if p.get("list", "cll") != "cll":
+        t *= 0.86 + 0.001 * (p.get("ns", 1) - 4) ** 2
     if p.get("kgc"):
-        t *= 1.8
+        t *= 1.85
     threads = p.get("threads", 1)
     return t / (0.85 * threads) if threads > 1 else t
 
 
+ROUND_OVERHEAD_S = 0.3  # bench start, snapshot load, JSON
+
+
+def round_seconds(exp, size):
+    """Model of one round: every configuration's warm-up + repetitions."""
+    reps = P.protocol_of(exp, size)["reps_per_round"]
+    if exp["benchmark"] == "step":
+        window = exp["window_steps"][size]
+        per = [step_seconds(p) * window for p in R.sweep_points(exp, size)]
+    else:  # cellindex: >= 2e6 cell keys per iteration; search: one list build
+        per = [0.02 if exp["benchmark"] == "cellindex" else 2e-7 * p["n"]
+               for p in R.sweep_points(exp, size)]
+    return sum(t * (reps + 1) for t in per) + ROUND_OVERHEAD_S
+
+
 def estimate_seconds(exp, size):
-    """Model estimate of one experiment's bench time, overhead included."""
+    """Model estimate of one experiment at its minimum number of rounds."""
     if exp.get("uses"):
         return 0.0
-    steps, reps = exp["window_steps"][size], exp["repetitions"][size]
-    if exp["benchmark"] == "step":
-        per = [step_seconds(p) * steps for p in R.sweep_points(exp, size)]
-    else:  # cellindex: ~2e6 cell keys per iteration
-        per = [0.05 for _ in R.sweep_points(exp, size)]
-    return sum(t * reps + 0.2 for t in per)
+    return round_seconds(exp, size) * P.protocol_of(exp, size)["min_rounds"]
+
+
+def most_seconds(exp, size):
+    """Model of the longest an experiment may take: rounds are added while one
+    more fits in the budget, up to max_rounds; the minimum rounds always run."""
+    if exp.get("uses"):
+        return 0.0
+    proto, per = P.protocol_of(exp, size), round_seconds(exp, size)
+    fit = max(proto["min_rounds"], min(proto["max_rounds"], int(proto["budget_s"] // per)))
+    return per * fit
+
+
+def develop_steps(n, flow_time):
+    """Steps of the development run to flow_time (3 346 to 0.35 s at N = 10^6;
+    dt scales with the spacing, N^(-1/3))."""
+    return 3346 * (n / 1e6) ** (1 / 3) * flow_time / 0.35
+
+
+def snapshot_seconds(experiments, size, cache_dir):
+    """Model of the development runs still to do: per case, one run from t = 0
+    to the latest missing flow time (on every core), as bench_common.cpp does."""
+    threads = os.cpu_count() or 1
+    need = collections.defaultdict(set)
+    for exp in experiments:
+        if exp.get("uses") or exp["benchmark"] not in ("step", "cellindex"):
+            continue
+        for p in R.sweep_points(exp, size):
+            need[p["n"]].add(p.get("flow_time", R.DEFAULT_FLOW_TIME))
+    def cached(n, t):  # the names of bench_common.cpp (lattice bcc, h coefficient 0.866025)
+        stem = cache_dir / f"dambreak_v1_n{n}_bcc_h0.866025_t{R.format_value(float(t))}"
+        legacy = t == R.DEFAULT_FLOW_TIME and pathlib.Path(f"{stem}.snap").exists()
+        return legacy or pathlib.Path(f"{stem}_thr{threads}.snap").exists()
+    total = 0.0
+    for n, times in need.items():
+        missing = [t for t in times if not cached(n, t)]
+        if missing:
+            total += develop_steps(n, max(missing)) * particle_step_seconds(n) * n / (0.85 * threads)
+    return total
 
 
 def hms(seconds):
@@ -72,56 +147,46 @@ def hms(seconds):
 
 
 # -------------------------------------------------------------------- machine
-def _cmd(*args):
-    try:
-        out = subprocess.run(args, capture_output=True, text=True, timeout=30,
-                             cwd=REPO, env={**os.environ, "LC_ALL": "C"})
-        return out.stdout.strip() if out.returncode == 0 else ""
-    except (OSError, subprocess.TimeoutExpired):
-        return ""
+def part_record(args):
+    """Provenance of this invocation (one part of a run made in parts)."""
+    return {"date": M.now(), "git_revision": M.git_revision() or "unknown",
+            "git_dirty": M.git_dirty(), "bench": M.relative_to_repo(args.bench),
+            "bench_sha256": M.sha256(args.bench), "max_n": args.max_n, "only": args.only,
+            "loadavg_start": M.loadavg(), "loadavg_end": None}
 
 
-def machine_info(args):
-    """CPU, caches, memory, compiler, git revision, date and size of this run."""
-    cpu = dict(line.split(":", 1) for line in _cmd("lscpu").splitlines() if ":" in line)
-    cpu = {k.strip(): v.strip() for k, v in cpu.items()}
-    as_int = lambda k: int(cpu[k]) if cpu.get(k, "").isdigit() else None  # noqa: E731
-    mem_kib = re.search(r"MemTotal:\s+(\d+)", pathlib.Path("/proc/meminfo").read_text(encoding="utf-8")
-                        if os.path.exists("/proc/meminfo") else "")
-    sockets, per_socket = as_int("Socket(s)"), as_int("Core(s) per socket")
-    rev = _cmd("git", "rev-parse", "HEAD")
-    return {
-        "run_id": args.run_id, "size": args.size,
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "cpu_model": cpu.get("Model name", platform.processor() or "unknown"),
-        "logical_cpus": as_int("CPU(s)") or os.cpu_count(),
-        "cores": sockets * per_socket if sockets and per_socket else None,
-        "threads_per_core": as_int("Thread(s) per core"),
-        "caches": {k.replace(" cache", ""): cpu[k] for k in
-                   ("L1d cache", "L1i cache", "L2 cache", "L3 cache") if k in cpu},
-        "memory_bytes": int(mem_kib.group(1)) * 1024 if mem_kib else None,
-        "compiler": (_cmd("c++", "--version").splitlines() or ["unknown"])[0],
-        "git_revision": rev or "unknown",
-        # Results written by earlier parts of this run do not make the code dirty.
-        "git_dirty": bool(_cmd("git", "status", "--porcelain", "--", ".", ":!results")) if rev else None,
-        "os": platform.platform(),
-        "python": platform.python_version(),
-        "bench": str(args.bench),
-        "max_n": args.max_n,
-    }
-
-
-def machine_record(args, path):
-    """machine.json for this invocation; earlier invocations that wrote into the
-    same run folder (a run done in parts) are listed under `earlier`."""
-    info = machine_info(args)
+def read_machine(path):
     try:
         old = json.loads(path.read_text(encoding="utf-8"))
-        earlier = old.pop("earlier", [])
-        info["earlier"] = earlier + [{k: old.get(k) for k in
-                                      ("date", "git_revision", "git_dirty", "max_n", "bench")}]
-    except (OSError, ValueError, AttributeError):
-        pass
+        return old if isinstance(old, dict) else None
+    except (OSError, ValueError):
+        return None
+
+
+def earlier_parts(old):
+    """The parts recorded in an existing machine.json (older files: `earlier`
+    plus the top level)."""
+    if not old:
+        return []
+    if "parts" in old:
+        return list(old["parts"])
+    keys = ("date", "git_revision", "git_dirty", "max_n", "bench", "bench_sha256")
+    return list(old.get("earlier", [])) + [{k: old.get(k) for k in keys}]
+
+
+def machine_record(args, part, parts_before, forced):
+    """machine.json: this machine, this part at the top level, every part in
+    `parts` (the report lists the earlier ones from `earlier`)."""
+    info = {"run_id": args.run_id, "size": args.size, **M.machine_info(),
+            **{k: part[k] for k in ("date", "git_revision", "git_dirty", "bench", "bench_sha256",
+                                    "max_n", "loadavg_start", "loadavg_end")},
+            "forced_merge": bool(forced) or any(p.get("forced_merge") for p in parts_before),
+            "forced_merge_reason": forced or next((p.get("forced_merge_reason") for p in parts_before
+                                                   if p.get("forced_merge")), None),
+            "pinning": {k: os.environ.get(k, v) for k, v in PINNING.items()},
+            "parts": parts_before + [part]}
+    if parts_before:
+        info["earlier"] = parts_before
     return info
 
 
@@ -138,7 +203,21 @@ def restrict_n(exp, size, keep):
     return out
 
 
-def bench_command(args, exp, out_tmp, exp_file):
+def bench_env(args):
+    """Environment of the bench: OpenMP pinning (PINNING), and for a .py
+    stand-in (tests/python/fake_bench.py) the repository root on PYTHONPATH,
+    since it imports the harness package."""
+    env = dict(os.environ)
+    for key, value in PINNING.items():
+        env.setdefault(key, value)
+    if args.bench.suffix == ".py":
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO), env.get("PYTHONPATH")]))
+    return env
+
+
+def bench_command(args, exp, out_tmp, exp_file, reps):
+    """One round: every configuration `reps` times, repetitions randomly
+    interleaved across configurations, one discarded warm-up each."""
     base = [sys.executable, str(args.bench)] if args.bench.suffix == ".py" else [str(args.bench)]
     return base + [
         f"--experiment={exp_file}",
@@ -146,108 +225,196 @@ def bench_command(args, exp, out_tmp, exp_file):
         f"--cache-dir={args.cache_dir}",
         f"--benchmark_out={out_tmp}",
         "--benchmark_out_format=json",
-        f"--benchmark_repetitions={exp['repetitions'][args.size]}",
+        f"--benchmark_repetitions={reps}",
+        "--benchmark_enable_random_interleaving=true",
+        WARMUP_FLAG,
         "--benchmark_min_time=0",
     ]
 
 
 def resume_plan(args, exp, out_path):
-    """(experiment to run, benchmark entries to keep): when out_path holds some
-    but not all N of the sweep, only the missing N are run and the rest kept."""
+    """(experiment to run, earlier document or None): when out_path holds some
+    but not all N of the sweep, only the missing N are run; the earlier
+    document's entries for the other N (and their rounds) are kept."""
     if args.force or not out_path.exists() or "n" not in exp["sweep"][args.size]:
-        return exp, []
+        return exp, None
     try:
         doc = R.read_benchmark_json(out_path)
         missing = R.missing_in(doc, exp, args.size)
     except R.ResultsError:
-        return exp, []
+        return exp, None
     rerun = {R.parse_run_name(name)[1]["n"] for name in missing}
 
     def n_of(entry):
         family, params = R.parse_run_name(entry.get("run_name", entry.get("name", "")))
         return params.get("n") if family == exp["benchmark"] else None
-    keep = [b for b in doc["benchmarks"] if n_of(b) not in (None, *rerun)]
-    if not keep:
-        return exp, []
-    print(f"  {exp['id']}: keeping {len(keep)} entries of {out_path.name}; running only "
+    doc["benchmarks"] = [b for b in doc["benchmarks"] if n_of(b) not in (None, *rerun)
+                         and b.get("run_type", "iteration") == "iteration"]
+    if not doc["benchmarks"]:
+        return exp, None
+    print(f"  {exp['id']}: keeping {len(doc['benchmarks'])} entries of {out_path.name}; running only "
           f"N = {', '.join(str(n) for n in sorted(rerun))}", flush=True)
-    return restrict_n(exp, args.size, lambda n: n in rerun), keep
+    return restrict_n(exp, args.size, lambda n: n in rerun), doc
+
+
+def metric_samples(entries, exp):
+    """{run name: [[values of one round], ...]} of the experiment's metric (`metric`
+    of the file, else s_per_step, else real time): what the adaptive stop
+    must know precisely."""
+    key = exp.get("metric", "s_per_step")
+    out = collections.defaultdict(lambda: collections.defaultdict(list))
+    for e in entries:
+        if not e.get("error_occurred"):
+            out[e["run_name"]][e["sphnl_round"]].append(e.get(key, e.get("real_time")))
+    return {name: list(by_round.values()) for name, by_round in out.items()}
+
+
+class Bench:
+    """One bench process (a round): started, its stdout counted for progress,
+    its stderr tail kept for the error message."""
+
+    def __init__(self, args, cmd, family, on_line):
+        self.tail = collections.deque(maxlen=30)
+        try:
+            self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                         bufsize=1, cwd=REPO, env=bench_env(args))
+        except OSError as e:
+            raise RunError(f"cannot start {args.bench}: {e}", 2) from None
+        self.args, self.family, self.on_line = args, family, on_line
+
+    def wait(self):
+        def pump_stderr():  # keep a tail; show the bench's own messages (snapshots)
+            for line in self.proc.stderr:
+                self.tail.append(line.rstrip("\n"))
+                if self.args.verbose or line.startswith("sphnl_bench"):
+                    print("  | " + line.rstrip("\n"), file=sys.stderr, flush=True)
+        reader = threading.Thread(target=pump_stderr, daemon=True)
+        reader.start()
+        for line in self.proc.stdout:
+            if self.args.verbose:
+                print("  > " + line.rstrip("\n"), flush=True)
+            token = (line.split() or [""])[0]
+            if token.startswith(self.family + "/") and not AGGREGATE.search(token):
+                self.on_line()
+        rc = self.proc.wait()
+        reader.join(timeout=5)
+        return rc
+
+    def kill(self):
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+
+
+def run_round(args, exp, k, offset, reps, exp_file, tmp, progress):
+    """Round k of `exp`: (iteration entries tagged sphnl_round = offset + k,
+    the bench's JSON context, the round's record for `sphnl_rounds`)."""
+    threads = max(exp["sweep"][args.size].get("threads", [1]))
+    probe = M.NoiseProbe(threads)
+    bench = Bench(args, bench_command(args, exp, tmp, exp_file, reps), exp["benchmark"], progress)
+    try:
+        rc = bench.wait()
+    finally:  # on any failure or Ctrl-C: no bench left running
+        bench.kill()
+    noise = probe.finish(bench_env(args))
+    if rc != 0:
+        raise RunError(f"{exp['id']}: {args.bench} exited with status {rc} in round {k + 1}; nothing "
+                       "saved.\nLast lines of its stderr:\n  " + "\n  ".join(bench.tail or ["(empty)"]))
+    try:
+        doc = R.read_benchmark_json(tmp)
+    except R.ResultsError as e:
+        raise RunError(f"{exp['id']}: the bench exited 0 but its output is unusable: {e}") from None
+    entries = [b for b in doc["benchmarks"] if b.get("run_type", "iteration") == "iteration"]
+    order, warmups = P.executed_order(entries)
+    for e in entries:
+        e["sphnl_round"] = offset + k
+    record = {"round": offset + k, **noise, "order": order, "warmups_discarded": warmups,
+              "git_revision": args.part["git_revision"], "bench_sha256": args.part["bench_sha256"]}
+    if record["cpu_mhz"] == [] and doc.get("context", {}).get("mhz_per_cpu"):
+        record["cpu_mhz"] = [float(doc["context"]["mhz_per_cpu"])] * len(record["cpu_affinity"] or [1])
+        record["cpu_mhz_source"] = "Google Benchmark context (nominal)"
+    return entries, doc.get("context", {}), record
 
 
 def run_experiment(args, exp, out_path, label):
-    """Run one experiment; the JSON appears at out_path only if complete."""
-    size, family = args.size, exp["benchmark"]
-    full_exp = exp
-    exp, keep = resume_plan(args, exp, out_path)
-    configs = len(R.sweep_points(exp, size))
-    reps = exp["repetitions"][size]
-    print(f"{label} {exp['id']}: {configs} configurations x {reps} repetitions, "
-          f"{exp['window_steps'][size]} steps each (model estimate {hms(estimate_seconds(exp, size))})",
-          flush=True)
+    """Run one experiment round by round; its JSON appears at out_path only
+    when complete. Returns the seconds its rounds took."""
+    size, full_exp = args.size, exp
+    exp, earlier = resume_plan(args, exp, out_path)
+    proto = P.protocol_of(exp, size)
+    configs, reps = len(R.sweep_points(exp, size)), proto["reps_per_round"]
+    print(f"{label} {exp['id']}: {configs} configurations x {reps} repetitions per round, "
+          f"{proto['min_rounds']}-{proto['max_rounds']} rounds (target +-{proto['target_halfwidth_pct']:g} %, "
+          f"budget {hms(proto['budget_s'])}), {exp['window_steps'][size]} steps each "
+          f"(model estimate {hms(estimate_seconds(exp, size))})", flush=True)
     tmp = out_path.with_name(f".{out_path.name}.partial")
     exp_file = REPO / "experiments" / (exp["id"] + ".json")
     if exp.get("_restricted"):  # the bench reads its sweep from a file: give it the restricted one
         exp_file = out_path.with_name(f".{exp['id']}.experiment.json")
-        R.write_atomic(exp_file, json.dumps({k: v for k, v in exp.items() if k != "_restricted"},
-                                            indent=1) + "\n")
-    cmd = bench_command(args, exp, tmp, exp_file)
-    if args.verbose:
-        print("  $ " + " ".join(cmd), flush=True)
-    start, lines = time.monotonic(), 0
-    tail = collections.deque(maxlen=30)
-    try:
-        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                text=True, bufsize=1, cwd=REPO)
-    except OSError as e:
-        raise RunError(f"cannot start {args.bench}: {e}", 2) from None
+        write_atomic(exp_file, json.dumps({k: v for k, v in exp.items() if k != "_restricted"},
+                                          indent=1) + "\n")
+    old_rounds = list(earlier.get("sphnl_rounds", [])) if earlier else []
+    offset = 1 + max([r.get("round", -1) for r in old_rounds] + [-1]) if earlier else 0
+    if earlier and not old_rounds:  # entries of an older harness: no round tag; one process
+        offset = 1
+    entries, rounds, context = [], [], {}
+    start = time.monotonic()
+    lines = [0]
 
-    def pump_stderr():  # keep a tail; show the bench's own messages (snapshots)
-        for line in proc.stderr:
-            tail.append(line.rstrip("\n"))
-            if args.verbose or line.startswith("sphnl_bench"):
-                print("  | " + line.rstrip("\n"), file=sys.stderr, flush=True)
-    reader = threading.Thread(target=pump_stderr, daemon=True)
-    reader.start()
+    def progress():
+        lines[0] += 1
+        done, per_round = lines[0], configs * reps
+        if done % reps:
+            return
+        elapsed = time.monotonic() - start
+        in_round = done - per_round * len(rounds)
+        left = per_round - in_round + per_round * max(0, proto["min_rounds"] - len(rounds) - 1)
+        print(f"  {exp['id']}: round {len(rounds) + 1}, configs done {in_round // reps}/{configs}, "
+              f"elapsed {hms(elapsed)}, ETA {hms(elapsed / done * left)} (measured rate; "
+              "more rounds if the target is not met)", flush=True)
     try:
-        for line in proc.stdout:
-            if args.verbose:
-                print("  > " + line.rstrip("\n"), flush=True)
-            token = (line.split() or [""])[0]
-            if token.startswith(family + "/") and not AGGREGATE.search(token):
-                lines += 1
-                if lines % reps == 0:
-                    elapsed = time.monotonic() - start
-                    eta = elapsed / lines * (configs * reps - lines)
-                    print(f"  {exp['id']}: configs done {lines // reps}/{configs}, "
-                          f"elapsed {hms(elapsed)}, ETA {hms(eta)}", flush=True)
-        rc = proc.wait()
-        reader.join(timeout=5)
-        if rc != 0:
-            raise RunError(f"{exp['id']}: {args.bench} exited with status {rc}; nothing saved.\n"
-                           "Last lines of its stderr:\n  " + "\n  ".join(tail or ["(empty)"]))
-        try:
-            doc = R.read_benchmark_json(tmp)
-            if keep:  # merge with the entries kept from the earlier run
-                doc["benchmarks"] = keep + doc["benchmarks"]
-                doc["context"]["sphnl_merged"] = (f"{len(keep)} entries kept from an earlier run "
-                                                  "of this experiment (other N)")
-                R.write_atomic(tmp, json.dumps(doc, indent=2) + "\n")
-            missing = R.missing_in(doc, full_exp, size)
-        except R.ResultsError as e:
-            raise RunError(f"{exp['id']}: the bench exited 0 but its output is unusable: {e}") from None
+        reason = None
+        while reason is None:
+            k = len(rounds)
+            round_entries, context, record = run_round(args, exp, k, offset, reps, exp_file, tmp, progress)
+            entries += round_entries
+            rounds.append(record)
+            elapsed = time.monotonic() - start
+            reason = P.stop_reason(metric_samples(entries, exp), proto, len(rounds), elapsed,
+                                   elapsed / len(rounds))
+            if record["under_load"]:
+                print(f"  {exp['id']}: round {k + 1} ran under load (load average "
+                      f"{record['loadavg_before']} -> {record['loadavg_after']}, others busy "
+                      f"{record['other_busy_cores']} cores, steal {record['steal_pct']} %)", flush=True)
+        kept = earlier["benchmarks"] if earlier else []
+        for b in kept:  # entries of an older harness had one process: round 0
+            b.setdefault("sphnl_round", 0)
+        doc = {"context": context, "benchmarks": kept + entries,
+               "sphnl_rounds": old_rounds + rounds,
+               "sphnl_protocol": {"rounds": len(rounds), "reps_per_round": reps,
+                                  "min_rounds": proto["min_rounds"], "max_rounds": proto["max_rounds"],
+                                  "target_halfwidth_pct": proto["target_halfwidth_pct"],
+                                  "budget_s": proto["budget_s"], "stop_reason": reason,
+                                  "metric": exp.get("metric", "s_per_step"),
+                                  "seconds": round(time.monotonic() - start, 1)}}
+        if earlier:
+            doc["context"]["sphnl_merged"] = (f"{len(kept)} entries kept from an earlier run "
+                                              "of this experiment (other N)")
+            doc["sphnl_protocol_earlier"] = ([earlier["sphnl_protocol"]] if "sphnl_protocol" in earlier
+                                             else []) + earlier.get("sphnl_protocol_earlier", [])
+        missing = R.missing_in(doc, full_exp, size)
         if missing:
-            raise RunError(f"{exp['id']}: the bench output lacks {len(missing)} of {configs} sweep "
-                           "points (names must follow docs/CONTRACTS.md), e.g.\n  "
-                           + "\n  ".join(missing[:5]))
-        os.replace(tmp, out_path)
-    finally:  # on any failure or Ctrl-C: no bench left running, no partial JSON left
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+            raise RunError(f"{exp['id']}: the bench output lacks {len(missing)} of "
+                           f"{len(R.sweep_points(full_exp, size))} sweep points (names must follow "
+                           "docs/CONTRACTS.md), e.g.\n  " + "\n  ".join(missing[:5]))
+        write_atomic(out_path, json.dumps(doc, indent=2) + "\n")
+    finally:  # on any failure or Ctrl-C: no partial JSON left
         tmp.unlink(missing_ok=True)
         if exp.get("_restricted"):
             exp_file.unlink(missing_ok=True)
-    print(f"  {exp['id']}: done in {hms(time.monotonic() - start)} -> {out_path}", flush=True)
+    seconds = time.monotonic() - start
+    print(f"  {exp['id']}: {len(rounds)} rounds ({reason}) in {hms(seconds)} -> {out_path}", flush=True)
+    return seconds
 
 
 def status(out_path, exp, size):
@@ -259,6 +426,12 @@ def status(out_path, exp, size):
     except R.ResultsError as e:
         return f"unreadable ({e})"
     return "complete" if not missing else f"incomplete ({len(missing)} sweep points missing)"
+
+
+def has_results(out_dir):
+    """Whether a run folder already holds an experiment's results."""
+    return out_dir.is_dir() and any(p.name != "machine.json" and not p.name.startswith(".")
+                                    for p in out_dir.glob("*.json"))
 
 
 def select(experiments, only):
@@ -301,11 +474,18 @@ def parse_args(argv):
     p.add_argument("--max-n", type=int, metavar="N",
                    help="leave out sweep points with more than N particles (a long FULL run in "
                         "parts: rerun later without it and only the missing N run)")
+    p.add_argument("--force-merge", metavar="REASON",
+                   help="add results to a run folder even though the code differs from its earlier "
+                        "parts' (dirty tree, other revision or bench binary); REASON is recorded in "
+                        "machine.json and shown in the report")
     p.add_argument("--dry-run", action="store_true",
                    help="print the plan and the model time estimate, run nothing")
     p.add_argument("-v", "--verbose", action="store_true",
                    help="echo the bench command, its stdout and stderr")
     args = p.parse_args(argv)
+    if args.force_merge is not None and not args.force_merge.strip():
+        p.error("--force-merge needs a reason (it is shown in the report), e.g. "
+                "--force-merge 'comment-only change between the parts'")
     if args.max_n is not None and args.max_n < 1:
         p.error(f"--max-n must be a positive particle count, not {args.max_n}")
     args.run_id = args.run_id or args.size
@@ -332,29 +512,58 @@ def main(argv=None):
             state = status(out, exp, args.size)
             plan.append((exp, out, state if args.force or state != "complete" else None))
         todo = [(exp, out) for exp, out, why in plan if why]
-        total = sum(estimate_seconds(e, args.size) for e, _ in todo)
         for exp, out, why in plan:
             print(f"{exp['id']}: {'run (' + why + ')' if why else 'complete, skipped (--force reruns)'}")
-        print(f"{len(todo)} of {len(plan)} experiments to run, model estimate {hms(total)} "
-              f"(plus snapshot creation for new N)", flush=True)
+        for exp, _ in todo:
+            rounds = P.protocol_of(exp, args.size)
+            print(f"  {exp['id']}: {round_seconds(exp, args.size):.0f} s per round x "
+                  f"{rounds['min_rounds']}-{rounds['max_rounds']} rounds (budget {hms(rounds['budget_s'])})")
+        total = sum(estimate_seconds(e, args.size) for e, _ in todo)
+        snaps = snapshot_seconds([e for e, _ in todo], args.size, args.cache_dir)
+        most = sum(most_seconds(e, args.size) for e, _ in todo)
+        print(f"{len(todo)} of {len(plan)} experiments to run, model estimate {hms(total + snaps)} "
+              f"({hms(total)} at the minimum rounds + {hms(snaps)} developing missing snapshots; "
+              f"at most {hms(most + snaps)} if every experiment adds rounds to its budget)", flush=True)
         if args.dry_run or not todo:
             return 0
         if not (args.bench.is_file() and os.access(args.bench, os.X_OK)):
             raise RunError(f"benchmark binary {args.bench} not found or not executable; "
                            "build it first with `make build`", 2)
+        machine_path = out_dir / "machine.json"
+        args.part = part_record(args)
+        old = read_machine(machine_path)
+        before = earlier_parts(old) if has_results(out_dir) else []
+        refusal = M.merge_refusal(before, args.part) if before else None
+        if refusal and not args.force_merge:
+            raise RunError(f"{out_dir} already holds results of other code: {refusal}, or pass "
+                           "--force-merge REASON (make reproduce FORCE_MERGE=REASON) to merge "
+                           "anyway, which the report shows", 2)
+        forced = args.force_merge if refusal else None
+        if forced:
+            args.part.update(forced_merge=True, forced_merge_reason=f"{forced} ({refusal})")
+            print(f"warning: merging into {out_dir} although {refusal} (--force-merge)", file=sys.stderr)
+            forced = args.part["forced_merge_reason"]
         out_dir.mkdir(parents=True, exist_ok=True)
-        R.write_atomic(out_dir / "machine.json",
-                       json.dumps(machine_record(args, out_dir / "machine.json"), indent=2) + "\n")
-        start, modelled = time.monotonic(), 0.0
-        for k, (exp, out) in enumerate(todo, 1):
-            if modelled:  # scale the model by how fast this machine has been so far
-                left = sum(estimate_seconds(e, args.size) for e, _ in todo[k - 1:])
-                print(f"overall: {k - 1}/{len(todo)} experiments done in "
-                      f"{hms(time.monotonic() - start)}, about "
-                      f"{hms(left * (time.monotonic() - start) / modelled)} left", flush=True)
-            run_experiment(args, exp, out, f"[{k}/{len(todo)}]")
-            modelled += estimate_seconds(exp, args.size)
-        print(f"all done; draw the figures with: /usr/bin/python3 plots/report.py {out_dir}")
+
+        def save_machine():
+            write_atomic(machine_path, json.dumps(machine_record(args, args.part, before, forced),
+                                                  indent=2) + "\n")
+        save_machine()
+        start, modelled, measured = time.monotonic(), 0.0, 0.0
+        try:
+            for k, (exp, out) in enumerate(todo, 1):
+                if modelled:  # the model scaled by how fast this machine has measured so far
+                    left = sum(estimate_seconds(e, args.size) for e, _ in todo[k - 1:])
+                    print(f"overall: {k - 1}/{len(todo)} experiments done in "
+                          f"{hms(time.monotonic() - start)}, about {hms(left * measured / modelled)} "
+                          "left at the rate measured so far", flush=True)
+                measured += run_experiment(args, exp, out, f"[{k}/{len(todo)}]")
+                modelled += estimate_seconds(exp, args.size)
+        finally:
+            args.part["loadavg_end"] = M.loadavg()
+            args.part["ended"] = M.now()
+            save_machine()
+        print(f"all done; draw the figures with: /usr/bin/python3 -m plots.report {out_dir}")
         return 0
     except (RunError, R.ResultsError) as e:
         print(f"error: {e}", file=sys.stderr)

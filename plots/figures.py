@@ -1,10 +1,13 @@
 """One function per figure of Domínguez et al. (2011), "Neighbour lists in SPH".
 
 Each `figNN(data, out)` takes the rows of the experiment the figure is drawn
-from (plots/results.load_run, filtered on `experiment`), writes
+from (harness.results.load_run, filtered on `experiment`), writes
 out/figNN.png and out/figNN.svg (headless, deterministic, atomic) and returns
 one sentence describing what the data show. `table1(data, exp)` returns the
-markdown of Table I and its sentence. Axes follow the paper: runtime or memory
+markdown of Table I and its sentence. Every plotted median carries its 95 %
+bootstrap interval (harness.stats.RoundBootstrap, resampled by round, so an
+improvement's interval is paired: CLL and VL of the same round form one
+ratio), drawn as error bars and a shaded band. Axes follow the paper: runtime or memory
 against N, improvement (t_ref - t)/t_ref in percent against N or n_s; runtime
 is wall seconds per step (the paper plots hours for its whole simulation).
 """
@@ -19,7 +22,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 import numpy as np  # noqa: E402
 
-from results import improvement, medians, pick, write_atomic  # noqa: E402
+from harness import stats as S  # noqa: E402
+from harness.fsio import write_atomic  # noqa: E402
+from harness.results import improvement, pick  # noqa: E402
 
 plt.rcParams.update({"svg.hashsalt": "sphnl", "savefig.dpi": 110, "axes.grid": True,
                      "grid.alpha": 0.3, "font.size": 10, "legend.fontsize": 9})
@@ -33,18 +38,61 @@ SORTED_B = {**SERIAL, "gridder": "B", "reorder": 1}   # its choice from Section 
 N_LABEL = "N (particles)"
 NS_LABEL = "$n_s$ (steps a Verlet list is kept)"
 MARKERS = "osD^vx*"
+RESAMPLES = 100  # bootstrap replicates per figure; plots/report.py sets it from --resamples
 
 
 class NoData(Exception):
     """The results lack what a figure needs; the message says what."""
 
 
+class Med:
+    """The per-configuration medians of one figure's rows with their bootstrap
+    replicates: `point` is the median table, `curves(fn)` evaluates a curve
+    builder on it and on every replicate."""
+
+    def __init__(self, boot):
+        self.boot, self.point = boot, boot.point
+
+    def where(self, **equal):
+        rows = pick(self.point, **equal)
+        if rows.empty:
+            raise NoData("no successful benchmark entries with "
+                         + (", ".join(f"{k}={v}" for k, v in equal.items()) or "any parameters"))
+        return Med(self.boot.subset(self.point.index.isin(rows.index)))
+
+    def curves(self, fn):
+        """fn(median table) -> [(label, xs, ys)]; returns [(label, xs, ys, lo, hi)]."""
+        point = fn(self.point)
+        reps = [[] for _ in point]
+        for tab in self.boot.tables():
+            try:
+                got = fn(tab)
+            except Exception:  # noqa: BLE001 - a replicate that lost a point is left out
+                continue
+            if [g[0] for g in got] != [p[0] for p in point]:
+                continue
+            for i, (g, p) in enumerate(zip(got, point)):
+                if len(g[2]) == len(p[2]):
+                    reps[i].append(g[2])
+        out = []
+        for (label, xs, ys), r in zip(point, reps):
+            if r:
+                lo, hi = S.intervals(np.vstack(r), self.boot.level)
+            else:
+                lo, hi = np.full(len(ys), np.nan), np.full(len(ys), np.nan)
+            out.append((label, xs, ys, lo, hi))
+        return out
+
+
 def _med(data, **equal):
-    med = pick(medians(data), **equal) if len(data) else data
-    if med.empty:
-        raise NoData("no successful benchmark entries with "
-                     + (", ".join(f"{k}={v}" for k, v in equal.items()) or "any parameters"))
-    return med
+    """The figure's configurations; where the rows hold several flow states
+    the figure shows the paper's, t = 0.35 s (the claims pool the states)."""
+    if not len(data) or not (~data["error_occurred"].astype(bool)).any():
+        raise NoData("no successful benchmark entries")
+    if "flow_time" in data and data["flow_time"].nunique() > 1:
+        times = data["flow_time"].dropna().unique()
+        equal.setdefault("flow_time", min(times, key=lambda t: abs(t - 0.35)))
+    return Med(S.RoundBootstrap(data, resamples=RESAMPLES)).where(**equal)
 
 
 def _plain(label):
@@ -91,8 +139,11 @@ def _draw(out, fig_id, title, xlabel, panels):
     """Draw panels [(ylabel, curves, zero_line)] side by side and save PNG+SVG."""
     fig, axes = plt.subplots(1, len(panels), figsize=(6.4 * len(panels), 4.4), squeeze=False)
     for ax, (ylabel, curves, zero) in zip(axes[0], panels):
-        for i, (label, xs, ys) in enumerate(curves):
-            ax.plot(xs, ys, marker=MARKERS[i % len(MARKERS)], label=label)
+        for i, (label, xs, ys, lo, hi) in enumerate(curves):
+            line = ax.errorbar(xs, ys, yerr=[np.clip(ys - lo, 0, None), np.clip(hi - ys, 0, None)],
+                               marker=MARKERS[i % len(MARKERS)], capsize=3, label=label)
+            if len(xs) > 1 and np.isfinite(lo).all() and np.isfinite(hi).all():
+                ax.fill_between(xs, lo, hi, color=line[0].get_color(), alpha=0.15, lw=0)
         xs_all = np.concatenate([c[1] for c in curves])
         if xs_all.min() > 0 and xs_all.max() / xs_all.min() > 50:
             ax.set_xscale("log")
@@ -105,6 +156,8 @@ def _draw(out, fig_id, title, xlabel, panels):
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.legend()
     fig.suptitle(title)
+    fig.text(0.99, -0.01, "medians; bars and bands: 95 % bootstrap intervals (paired by round)",
+             ha="right", va="top", fontsize=7, color="0.4")
     _save(fig, out, fig_id)
 
 
@@ -112,9 +165,13 @@ def _at_end(curves, unit, digits=3, best=None):
     """'At N = x: a 1.2 ms, b ...' at the largest x shared by all curves;
     best='min'/'max' ranks the curves and gives ratios to the best."""
     x_end = min(c[1].max() for c in curves)
-    vals = {lab: float(ys[np.argmin(abs(xs - x_end))]) for lab, xs, ys in curves}
+    vals, ci = {}, {}
+    for lab, xs, ys, lo, hi in curves:
+        i = int(np.argmin(abs(xs - x_end)))
+        vals[lab], ci[lab] = float(ys[i]), (float(lo[i]), float(hi[i]))
     order = sorted(vals, key=vals.get, reverse=best == "max") if best else list(vals)
-    parts = [f"{_plain(lab)} {vals[lab]:.{digits}g}{unit}" for lab in order]
+    parts = [f"{_plain(lab)} {vals[lab]:.{digits}g}{unit} [{ci[lab][0]:.{digits}g}, {ci[lab][1]:.{digits}g}]"
+             for lab in order]
     if best == "min" and len(order) > 1 and vals[order[0]] > 0:
         parts = [parts[0]] + [f"{p} ({vals[lab] / vals[order[0]]:.2f}x)"
                               for p, lab in zip(parts[1:], order[1:])]
@@ -128,17 +185,43 @@ METRICS = {"t": ("wall time per step (s)", " s", "seconds per step from fastest"
 def _metric_vs_n(data, out, fig_id, title, y, by, labels, **equal):
     """Runtime (y='t') or memory (y='mem_mb') vs N, one curve per value of `by`."""
     ylabel, unit, what = METRICS[y]
-    curves = _curves(_med(data, **equal), by, y, labels)
+    curves = _med(data, **equal).curves(lambda m: _curves(m, by, y, labels))
     _draw(out, fig_id, title, N_LABEL, [(ylabel, curves, False)])
     n, text = _at_end(curves, unit, best="min")
     return f"At N = {_fmt_n(n)}, {what}: {text}."
 
 
-def _gain_vs_n(data, out, fig_id, title, labels, ref, var, **equal):
-    curves = _gain_curves(_med(data, **equal), labels, ref, var)
+def _gain_vs_n(data, out, fig_id, title, labels, ref, var, smooth=False, **equal):
+    curves = _med(data, **equal).curves(lambda m: _gain_curves(m, labels, ref, var))
     _draw(out, fig_id, title, N_LABEL, [("improvement in time (%)", curves, True)])
     n, text = _at_end(curves, " %", best="max")
-    return f"At N = {_fmt_n(n)}, improvement from largest: {text}."
+    return (f"At N = {_fmt_n(n)}, improvement from largest [95 % interval]: {text}. "
+            + (smooth_trend(curves, "ln N", np.log) if smooth else "")).rstrip()
+
+
+def smooth_trend(curves, xname, transform):
+    """Whether the intervals allow a smooth trend where the medians zig-zag:
+    a low-order polynomial in `xname` (quadratic; cubic from 6 points),
+    fitted to the medians weighted by 1 / interval width, passes through how
+    many of the intervals?"""
+    parts = []
+    for label, xs, ys, lo, hi in curves:
+        ok = np.isfinite(lo) & np.isfinite(hi)
+        if ok.sum() < 4:
+            continue
+        x, y = transform(xs[ok]), ys[ok]
+        width = np.maximum(hi[ok] - lo[ok], 1e-9)
+        degree = 3 if ok.sum() >= 6 else 2
+        fit = np.polyval(np.polyfit(x, y, degree, w=1 / width), x)
+        inside = int(((fit >= lo[ok] - 1e-12) & (fit <= hi[ok] + 1e-12)).sum())
+        signs = np.sign(np.diff(y))
+        zigzag = int((signs[1:] * signs[:-1] < 0).sum())
+        verdict = ("the intervals allow a smooth trend" if inside == ok.sum()
+                   else f"the intervals do not allow a smooth trend ({ok.sum() - inside} point(s) off it)")
+        parts.append(f"{_plain(label)}: the medians change direction {zigzag} time(s); a "
+                     f"{'cubic' if degree == 3 else 'quadratic'} in {xname} passes through {inside} of "
+                     f"{ok.sum()} intervals: {verdict}")
+    return ("Smoothness: " + "; ".join(parts) + ".") if parts else ""
 
 
 def fig06(data, out):
@@ -193,27 +276,30 @@ def fig13(data, out):
 
 def _fixed_n(med):
     """Fig. 14/15 are at one N: 31 239 when measured, else the largest.
-    Returns the rows at that N and the particles actually simulated."""
-    n = 31239 if (med["n"] == 31239).any() else med["n"].max()
-    rows = med[med["n"] == n]
-    return rows, rows["N"].median()
+    Returns the Med at that N and the particles actually simulated."""
+    n = 31239 if (med.point["n"] == 31239).any() else med.point["n"].max()
+    rows = med.where(n=n)
+    return rows, rows.point["N"].median()
 
 
 def fig14(data, out):
     """Fig. 14: improvement of VL_C and VL_X over CLL vs n_s (CLL paired at each n_s)."""
     med, n = _fixed_n(_med(data, **SORTED_B))
-    curves = _gain_curves(med, {"vlc": LISTS["vlc"], "vlx": LISTS["vlx"]}, lambda _: {"list": "cll"},
-                          lambda lst: {"list": lst}, x="ns", on=("n", "ns"))
+    curves = med.curves(lambda m: _gain_curves(m, {"vlc": LISTS["vlc"], "vlx": LISTS["vlx"]},
+                                               lambda _: {"list": "cll"}, lambda lst: {"list": lst},
+                                               x="ns", on=("n", "ns")))
     _draw(out, "fig14", f"Fig. 14: improvement over CLL vs $n_s$, N = {_fmt_n(n)}", NS_LABEL,
           [("improvement in time (%)", curves, True)])
-    best = [f"{_plain(lab)} {ys.max():.2g} % at n_s = {xs[ys.argmax()]:.0f}" for lab, xs, ys in curves]
-    return f"At N = {_fmt_n(n)} the largest improvements over CLL are " + " and ".join(best) + "."
+    best = [f"{_plain(lab)} {ys.max():.2g} % [{lo[ys.argmax()]:.2g}, {hi[ys.argmax()]:.2g}] at "
+            f"n_s = {xs[ys.argmax()]:.0f}" for lab, xs, ys, lo, hi in curves]
+    return (f"At N = {_fmt_n(n)} the largest improvements over CLL [95 % interval] are "
+            + " and ".join(best) + ". " + smooth_trend(curves, "n_s", lambda x: x)).rstrip()
 
 
 def fig15(data, out):
     """Fig. 15: memory of CLL, VL_X and VL_C vs n_s."""
     med, n = _fixed_n(_med(data, **SORTED_B))
-    curves = _curves(med, "list", "mem_mb", LISTS, x="ns")
+    curves = med.curves(lambda m: _curves(m, "list", "mem_mb", LISTS, x="ns"))
     _draw(out, "fig15", f"Fig. 15: memory vs $n_s$, N = {_fmt_n(n)}", NS_LABEL,
           [("neighbour-structure memory (MB)", curves, False)])
     ns, text = _at_end(curves, " MB", best="min")
@@ -224,38 +310,40 @@ def fig16(data, out):
     """Fig. 16: improvement of VL_C and VL_X over CLL at n_s = 7 vs N."""
     return _gain_vs_n(data, out, "fig16", "Fig. 16: improvement over CLL at $n_s$ = 7",
                       {"vlc": LISTS["vlc"], "vlx": LISTS["vlx"]}, lambda _: {"list": "cll"},
-                      lambda lst: {"list": lst}, **SORTED_B, ns=7)
+                      lambda lst: {"list": lst}, smooth=True, **SORTED_B, ns=7)
 
 
 def fig17(data, out):
     """Fig. 17: improvement of VL_X over CLL, with and without KGC, n_s = 7 vs N."""
     med = _med(data, order="sort_x", threads=1, gridder="B", reorder=1, ns=7)  # both kgc
-    curves = _gain_curves(med, {0: "VL$_X$", 1: "VL$_X$ with KGC"},
-                          lambda k: {"list": "cll", "kgc": k}, lambda k: {"list": "vlx", "kgc": k})
+    curves = med.curves(lambda m: _gain_curves(m, {0: "VL$_X$", 1: "VL$_X$ with KGC"},
+                                               lambda k: {"list": "cll", "kgc": k},
+                                               lambda k: {"list": "vlx", "kgc": k}))
     _draw(out, "fig17", "Fig. 17: improvement of VL$_X$ over CLL, with and without KGC ($n_s$ = 7)",
           N_LABEL, [("improvement in time (%)", curves, True)])
     n, text = _at_end(curves, " %", best="max")
-    return f"At N = {_fmt_n(n)}, improvement of VL_X over CLL (same correction): {text}."
+    return f"At N = {_fmt_n(n)}, improvement of VL_X over CLL (same correction) [95 % interval]: {text}."
 
 
 def cellindex(data, out):
     """Section 3.2: cost of the cell index per particle for each ordering ('~100x')."""
     med = _med(data, family="cellindex")
-    med = med.assign(ns_per=1e9 * med["s_per_particle"])
-    curves = _curves(med, "order", "ns_per", ORDERS)
+    curves = med.curves(lambda m: _curves(m.assign(ns_per=1e9 * m["s_per_particle"]),
+                                          "order", "ns_per", ORDERS))
     _draw(out, "cellindex", "Cost of the cell index per particle (Section 3.2)", N_LABEL,
           [("ns per particle", curves, False)])
     n, text = _at_end(curves, " ns", best="min")
     return f"At N = {_fmt_n(n)}, nanoseconds per particle from cheapest: {text}."
 
 
-def beyond_threads(data, out):
-    """Beyond the paper: 1 vs 2 threads for CLL and VL_X (n_s = 7), larger N."""
-    med = _med(data)
+def _thread_curves(med):
     med = med.assign(us=1e6 * med["t"] / med["N"], key=med["list"] + "/" + med["threads"].astype(str))
     labels = {f"{lst}/{th}": f"{LISTS[lst]}, {th} thread{'s' if th > 1 else ''}"
               for lst in LISTS for th in sorted(med["threads"].unique())}
-    per = _curves(med, "key", "us", labels)
+    return _curves(med, "key", "us", labels)
+
+
+def _speedups(med):
     speed = []
     for lst in LISTS:
         one = pick(med, list=lst, threads=1).set_index("n")
@@ -265,6 +353,14 @@ def beyond_threads(data, out):
             if len(common):
                 speed.append((f"{LISTS[lst]}, {th} threads", one.loc[common, "N"].to_numpy(float),
                               (one.loc[common, "t"] / many.loc[common, "t"]).to_numpy(float)))
+    return speed
+
+
+def beyond_threads(data, out):
+    """Beyond the paper: 1 vs 2 threads for CLL and VL_X (n_s = 7), larger N."""
+    med = _med(data)
+    per = med.curves(_thread_curves)
+    speed = med.curves(_speedups) if _speedups(med.point) else []
     panels = [("wall time per particle and step (µs)", per, False)]
     if speed:
         panels.append(("speed-up over 1 thread", speed, False))
@@ -286,7 +382,7 @@ def table1(data, exp):
 
     Returns (markdown, sentence). Shares are of the sum of the three timed
     phases; the paper values come from the experiment's claims."""
-    med = _med(data, ns=1, kgc=0)
+    med = _med(data, ns=1, kgc=0).point
     n = med["n"].max()
     paper = {c["id"]: c["paper_value"] for c in exp.get("claims", [])}
     cols, shares = [], {}
@@ -307,7 +403,8 @@ def table1(data, exp):
     md = "\n".join(lines) + (
         f"\n\nMeasured at N = {_fmt_n(pick(med, n=n)['N'].iloc[0])} (gridder B, SortX, reordered), "
         f"median of {reps} repetition(s); VL = VL_C with n_s = 1. Shares are of the sum of the "
-        f"three timed phases, which covers {cols[0]} (CLL) and {cols[1]} (VL) of the wall time per step.\n")
+        f"three timed phases, which covers {cols[0]} (CLL) and {cols[1]} (VL) of the wall time per step. "
+        f"The intervals of these shares are in the claims table (`table1_*`).\n")
     sentence = (f"The neighbour list takes {shares['cll']['list']:.1f} % of a CLL step and "
                 f"{shares['vl']['list']:.1f} % of a VL step (paper: "
                 f"{paper.get('table1_cll_list', '?')} % and {paper.get('table1_vl_list', '?')} %).")

@@ -1,49 +1,78 @@
 #!/usr/bin/python3
-"""Draw every figure, Table I and REPRODUCTION.md from a results folder alone.
+"""Draw every figure, Table I, REPRODUCTION.md and claims.json from a results folder alone.
 
-    /usr/bin/python3 plots/report.py results/<run-id> [--experiments-dir experiments]
+    /usr/bin/python3 -m plots.report results/<run-id> [--experiments-dir experiments]
+                                     [--resamples 1000] [--publish FILE]
 
-Writes RESULTS_DIR/figures/<id>.png|svg, RESULTS_DIR/table1.md and
-RESULTS_DIR/REPRODUCTION.md (machine, one data-derived sentence per figure,
-claims table: claim, paper value, measured value, verdict, note).
-A missing experiment file skips its figures with a line in the report.
+(from the repository root, or with PYTHONPATH set to it: harness/__init__.py)
+
+Writes RESULTS_DIR/figures/<id>.png|svg, RESULTS_DIR/table1.md,
+RESULTS_DIR/claims.json (one object per claim: value, 95 % interval, bands,
+verdict; docs/CONTRACTS.md) and RESULTS_DIR/REPRODUCTION.md (machine,
+rounds under load, one data-derived sentence per figure, claims table with
+`value [low, high]`). A missing experiment file skips its figures with a
+line in the report.
 """
 import argparse
 import collections
 import json
+import math
 import os
 import pathlib
 import sys
 
+import numpy as np
+
+from harness import stats as S
+from harness.fsio import write_atomic
+from harness.results import NOT_RESULTS, ResultsError, errors, load_experiments, load_run
+from plots import claims as C
+from plots import figures as F
+
 HERE = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-import claims as C  # noqa: E402
-import figures as F  # noqa: E402
-from results import ResultsError, errors, load_experiments, load_run, write_atomic  # noqa: E402
 
 TITLE = ("Reproduction of Domínguez, Crespo, Gómez-Gesteira and Marongiu (2011), "
          "\"Neighbour lists in smoothed particle hydrodynamics\"")
 UNITS = {"%": " %", "pp": " pp", "x": "x", "MB": " MB", "fraction": "", "": ""}
-VERDICTS = ("reproduced", "partly", "not reproduced", "not measured")
+VERDICTS = C.VERDICTS
+# Issue targets, printed so a run can be checked against them (docs/MEASUREMENT.md).
+TARGET_PP = 2.0        # improvement claims at N >= 31 000: half-width at most 2 pp
+TARGET_RATIO = 5.0     # ratio claims: half-width at most 5 % of the value
+TARGET_RESOLVED = 0.8  # share of claims not `unresolved`
+TINY_RESAMPLES = 50
+CLAIM_KEYS = ("id", "figure", "paper_value", "value", "ci_low", "ci_high", "unit", "at_n", "band",
+              "verdict", "repetitions", "rounds", "resolve", "note", "per_flow_time",
+              "per_experiment", "related")
+
+
+def _num(value, unit):
+    digits = ".2f" if unit in ("fraction", "x") else ".1f" if unit in ("%", "pp") else ".3g"
+    return f"{value:{digits}}"
 
 
 def fmt(value, unit):
-    if value is None:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return "–"
     if isinstance(value, str):
         return value + UNITS.get(unit, "")
-    digits = ".2f" if unit in ("fraction", "x") else ".1f" if unit in ("%", "pp") else ".3g"
-    return f"{value:{digits}}{UNITS.get(unit, ' ' + unit)}"
+    return _num(value, unit) + UNITS.get(unit, " " + unit)
+
+
+def fmt_ci(value, lo, hi, unit):
+    """'5.6 % [2.1, 6.6]': the value with its 95 % interval, in the value's unit."""
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "–"
+    if lo is None or hi is None or not (math.isfinite(lo) and math.isfinite(hi)):
+        return fmt(value, unit)
+    return f"{fmt(value, unit)} [{_num(lo, unit)}, {_num(hi, unit)}]"
 
 
 def fmt_interval(bounds, unit):
     lo, hi = bounds
-    if lo is not None and hi is not None:
-        return f"= {fmt(lo, unit)}" if lo == hi else f"{fmt(lo, unit)} to {fmt(hi, unit)}"
-    return f"≥ {fmt(lo, unit)}" if lo is not None else f"≤ {fmt(hi, unit)}"
+    return f"= {fmt(lo, unit)}" if lo == hi else f"{fmt(lo, unit)} to {fmt(hi, unit)}"
 
 
-def machine_section(run_dir, df):
+def machine_section(run_dir):
     path = run_dir / "machine.json"
     if not path.exists():
         return ["No machine.json in this run folder."], {}
@@ -51,39 +80,166 @@ def machine_section(run_dir, df):
         m = json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as e:
         raise ResultsError(f"{path}: not valid JSON ({e})") from None
-    caches = ", ".join(f"{k} {v}" for k, v in (m.get("caches") or {}).items())
-    mem = f"{m['memory_bytes'] / 2**30:.1f} GiB" if m.get("memory_bytes") else "?"
+    caches = m.get("caches") or m.get("caches_sysfs") or {}
+    caches = ", ".join(f"{k} {v}" for k, v in caches.items())
+    if caches and m.get("caches_source"):
+        caches += f" (from {m['caches_source']})"
+    mem = f"{m['memory_bytes'] / 2**30:.1f} GiB" if m.get("memory_bytes") else "not reported"
     dirty = " (uncommitted changes)" if m.get("git_dirty") else ""
-    rows = [("CPU", f"{m.get('cpu_model', '?')}, {m.get('cores', '?')} cores, "
-                    f"{m.get('logical_cpus', '?')} logical CPUs"),
-            ("Caches", caches or "?"), ("Memory", mem), ("Compiler", m.get("compiler", "?")),
-            ("Git revision", f"{m.get('git_revision', '?')}{dirty}"),
-            ("Date (UTC)", m.get("date", "?")), ("Size", m.get("size", "?")),
-            ("OS", m.get("os", "?"))]
+    cpu = m.get("cpu_model") or "not reported"
+    ident = [f"{k} {m[v]}" for k, v in (("family", "cpu_family"), ("model", "cpu_model_number"),
+                                          ("stepping", "cpu_stepping")) if m.get(v) is not None]
+    clock = [f"{m[k]:.0f} MHz {w}" for k, w in (("cpu_mhz", "current"), ("cpu_max_mhz", "max"))
+             if isinstance(m.get(k), (int, float))]
+    rows = [("CPU", f"{cpu}{' (' + ', '.join(ident) + ')' if ident else ''}, {m.get('cores') or '?'} cores, "
+                    f"{m.get('logical_cpus') or '?'} logical CPUs"),
+            ("Clock", ", ".join(clock) or "not reported"),
+            ("Caches", caches or "not reported"), ("Memory", mem),
+            ("Compiler", m.get("compiler") or "not reported"),
+            ("Git revision", f"{m.get('git_revision') or '?'}{dirty}"),
+            ("Date (UTC)", m.get("date") or "?"), ("Size", m.get("size") or "?"),
+            ("OS", m.get("os") or "not reported")]
+    if m.get("pinning"):
+        rows.append(("Pinning", json.dumps(m["pinning"]) if not isinstance(m["pinning"], str) else m["pinning"]))
+    if m.get("loadavg_start") is not None:
+        rows.append(("Load average", f"{m.get('loadavg_start')} at start, {m.get('loadavg_end')} at end"))
     if m.get("max_n"):
         rows.append(("N cap", f"sweep points above N = {m['max_n']:,} left out (--max-n)"))
     for part in m.get("earlier") or []:  # a run made in parts: each earlier invocation
         cap = f", N ≤ {part['max_n']:,}" if part.get("max_n") else ""
+        forced = f", **merged by force**: {part.get('forced_merge_reason') or 'no reason given'}" \
+            if part.get("forced_merge") else ""
         rows.append(("Earlier part", f"{part.get('date', '?')}, revision "
-                                     f"{(part.get('git_revision') or '?')[:12]}{cap}"))
+                                     f"{(part.get('git_revision') or '?')[:12]}{cap}{forced}"))
+    if m.get("forced_merge"):
+        rows.append(("Forced merge", "**yes**: parts from a dirty tree or different code were merged "
+                                     f"with --force-merge ({m.get('forced_merge_reason') or 'no reason given'})"))
     return ["| | |", "|---|---|"] + [f"| {k} | {v} |" for k, v in rows], m
 
 
-def build(run_dir, exp_dir):
-    """Draw everything; return (markdown of REPRODUCTION.md, verdict counts)."""
+def rounds_section(run_dir):
+    """Lines on the protocol and on the rounds measured under load, per experiment."""
+    lines, flagged, old = [], 0, []
+    for path in sorted(run_dir.glob("*.json")):
+        if path.name in NOT_RESULTS or path.name.startswith("."):
+            continue
+        try:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError):
+            continue
+        rounds = doc.get("sphnl_rounds")
+        if not isinstance(rounds, list):
+            old.append(path.stem)
+            continue
+        proto = doc.get("sphnl_protocol") or {}
+        loaded = [r for r in rounds if r.get("under_load")]
+        flagged += len(loaded)
+        desc = (f"- `{path.stem}`: {len(rounds)} rounds × {proto.get('reps_per_round', '?')} repetitions, "
+                f"stopped: {proto.get('stop_reason', '?')}")
+        if proto.get("target_halfwidth_pct") is not None:
+            desc += f" (target half-width {proto['target_halfwidth_pct']} %)"
+        if loaded:
+            def most(key, pick=max):
+                vals = [v for r in loaded for v in np.ravel([r.get(key)]) if isinstance(v, (int, float))]
+                return f"{pick(vals):.2g}" if vals else "?"
+            desc += (f"; **under load**: {len(loaded)} of {len(rounds)} rounds ("
+                     + ", ".join(str(r.get("round", "?")) for r in loaded)
+                     + f"; load average up to {most('loadavg_before')}/{most('loadavg_after')} before/after, "
+                     f"other processes up to {most('other_busy_cores')} cores, steal up to {most('steal_pct')} %)")
+        lines.append(desc)
+    if old:
+        lines.append(f"- {', '.join(f'`{o}`' for o in old)}: written before rounds were recorded "
+                     "(no noise records); each repetition is resampled as its own round")
+    return lines, flagged
+
+
+def targets(results):
+    """Lines that check the issue's targets on this run: share resolved,
+    interval half-widths of improvement (pp) and ratio (x) claims."""
+    measured = [r for r in results if r["verdict"] != "not measured"]
+    resolved = [r for r in measured if r["verdict"] != "unresolved"]
+    out = []
+    share = len(resolved) / len(measured) if measured else math.nan
+    out.append(f"- Resolved (not `unresolved`): {len(resolved)} of {len(measured)} measured claims "
+               f"({100 * share:.0f} %; target ≥ {100 * TARGET_RESOLVED:.0f} %)" if measured else
+               "- Resolved: no claim measured")
+
+    def half(r):
+        return max(r["value"] - r["ci_low"], r["ci_high"] - r["value"])
+    imp = [r for r in measured if r["unit"] in ("%", "pp") and not r["id"].startswith("table1")
+           and (r.get("at_n") or 0) >= 31000]
+    if imp:
+        worst = max(imp, key=half)
+        ok = sum(half(r) <= TARGET_PP for r in imp)
+        out.append(f"- Improvement claims at N ≥ 31 000: {ok} of {len(imp)} within ±{TARGET_PP:g} pp; widest "
+                   f"`{worst['id']}` ±{half(worst):.1f} pp")
+    ratios = [r for r in measured if r["unit"] == "x" and r["value"]]
+    if ratios:
+        rel = {r["id"]: 100 * half(r) / abs(r["value"]) for r in ratios}
+        worst = max(rel, key=rel.get)
+        ok = sum(v <= TARGET_RATIO for v in rel.values())
+        out.append(f"- Ratio claims: {ok} of {len(ratios)} within ±{TARGET_RATIO:g} %; widest `{worst}` "
+                   f"±{rel[worst]:.1f} %")
+    return out
+
+
+def claim_record(exp, r):
+    """The claims.json object of one evaluated claim."""
+    rec = {k: r.get(k) for k in CLAIM_KEYS if k not in ("figure", "band")}
+    rec["figure"] = exp["figure"]
+    rec["band"] = {"reproduced": r["tolerance"]["reproduced"], "partly": r["tolerance"]["partly"]}
+    rec["band_reason"] = r.get("band_reason", "")
+    rec["experiments"] = r.get("experiments", [])
+    for key in ("value", "ci_low", "ci_high"):
+        if isinstance(rec[key], float) and not math.isfinite(rec[key]):
+            rec[key] = None
+    return rec
+
+
+def claim_note(r):
+    parts = [r["note"]] if r["note"] else []
+    for name, v in r.get("related", {}).items():
+        parts.append(f"{name} {v['value']:.3g} [{v['ci_low']:.3g}, {v['ci_high']:.3g}]")
+    if r.get("per_flow_time"):
+        parts.append("per flow state: " + ", ".join(
+            f"t = {p['flow_time']:g} s: {fmt_ci(p['value'], p['ci_low'], p['ci_high'], r['unit'])}"
+            for p in r["per_flow_time"]))
+    if r.get("per_experiment"):
+        parts.append("each experiment alone: " + ", ".join(
+            f"{p['experiment']} {fmt_ci(p['value'], p['ci_low'], p['ci_high'], r['unit'])}"
+            for p in r["per_experiment"]))
+    if r.get("resolve"):
+        parts.append("to resolve: " + r["resolve"])
+    if r["verdict"] != "not measured":
+        parts.append(f"at least {r['repetitions']} repetitions in {r['rounds']} resampled rounds per configuration")
+    tol = r["tolerance"]
+    parts.append(f"reproduced if {fmt_interval(tol['reproduced'], r['unit'])}, partly if "
+                 f"{fmt_interval(tol['partly'], r['unit'])} ({r.get('band_reason', '')})")
+    return "; ".join(parts).replace("|", "/")
+
+
+def build(run_dir, exp_dir, resamples=None):
+    """Draw everything; return (markdown of REPRODUCTION.md, claims.json records, verdict counts, drawn, skipped)."""
     experiments = load_experiments(exp_dir)
+    for exp in experiments.values():
+        for c in exp["claims"]:
+            C.validate_claim(c, f"{exp_dir}/{exp['id']}.json")
     df = load_run(run_dir)
-    machine_lines, machine = machine_section(run_dir, df)
+    machine_lines, machine = machine_section(run_dir)
+    round_lines, flagged = rounds_section(run_dir)
     figs_dir = run_dir / "figures"
     figures, skipped, table_md, results = [], [], None, []
+    if resamples is None:  # a tiny run's numbers say nothing: few replicates keep make test fast
+        resamples = TINY_RESAMPLES if machine.get("size") == "tiny" else S.RESAMPLES
+    evaluator = C.Evaluator(df, resamples=resamples)
+    F.RESAMPLES = max(50, resamples // 4)
     for exp_id, exp in experiments.items():
         drawn = exp_id == "table1" or exp_id in F.FIGURES
         if not drawn and not exp["claims"]:
             continue  # not a figure (e.g. the CI benchmark set `compare`)
         src = exp.get("uses") or exp_id
         data = df[df["experiment"] == src]
-        for c in exp["claims"]:
-            results.append((exp, C.evaluate(c, data)))
+        results += [(exp, r) for r in evaluator.experiment(exp, exp["claims"])]
         if data.empty or not drawn:
             if drawn:
                 skipped.append(f"{exp_id} ({exp['figure']}): `{src}.json` is missing from {run_dir}")
@@ -98,27 +254,45 @@ def build(run_dir, exp_dir):
         except F.NoData as e:
             skipped.append(f"{exp_id} ({exp['figure']}): {e}")
 
+    records = [claim_record(exp, r) for exp, r in results]
     counts = collections.Counter(r["verdict"] for _, r in results)
     size = machine.get("size") or "?"
     out = [f"# {TITLE}", "",
-           f"Drawn by `plots/report.py` from the JSON in `{run_dir}` alone (size `{size}`).", ""]
+           f"Drawn by `plots/report.py` from the JSON in `{run_dir}` alone (size `{size}`); "
+           "the claims as data: `claims.json`.", ""]
     if size == "tiny":
         out += ["**This is a tiny run (a smoke test of the pipeline): its numbers say nothing "
                 "about the paper, and no claim is measured on it.**", ""]
-    out += ["## Machine", ""] + machine_lines + [
-        "", "## How to read this", "",
-        "- *t* is the median over repetitions of the wall seconds per step (`s_per_step`); every "
-        "repetition times the same window of steps from the same snapshot of the developed flow.",
-        "- *Improvement* is the paper's (t_ref − t) / t_ref in percent: positive means faster "
-        "than the reference.",
-        "- *Memory* is `nl_bytes`, the bytes of the neighbour structures (max over the window); "
-        "MB = 10⁶ bytes.",
-        "- A claim is *reproduced* when the measured value lies in its `reproduced` interval, "
-        "*partly* in its `partly` interval, otherwise *not reproduced*; *not measured* when the run "
-        "cannot support it (missing results, N < 5 000, too few points for a trend).",
-        "", "## Summary", "",
-        ", ".join(f"{counts.get(v, 0)} {v}" for v in VERDICTS) + f" (of {len(results)} claims); "
-        f"{len(figures)} figures and tables drawn, {len(skipped)} skipped.", ""]
+    out += ["## Machine", ""] + machine_lines + ["", "## Rounds", ""]
+    out += round_lines or ["No results files."]
+    out += ["", f"{flagged} round(s) measured under load." if flagged else "No round flagged under load.",
+            "", "## How to read this", "",
+            "- *t* is the median over repetitions of the wall seconds per step (`s_per_step`); every "
+            "repetition times the same window of steps from the same snapshot of the developed flow.",
+            "- Every value reads `value [low, high]`: the median-based estimate and its 95 % bootstrap "
+            f"interval ({resamples} replicates; rounds drawn with replacement, then the repetitions inside "
+            "each, with the same draw of rounds for every configuration, so that A and B of one round form "
+            "one ratio). Figures draw the same intervals as error bars and bands.",
+            "- A configuration measured in several experiments is pooled: every claim that uses it reads all "
+            "its repetitions, and the note lists the value each experiment gives alone.",
+            "- Where an experiment measures several flow states (`flow_time`), the claim is the mean over "
+            "the states; the note gives each state's value.",
+            "- *Improvement* is the paper's (t_ref − t) / t_ref in percent: positive means faster "
+            "than the reference.",
+            "- *Memory* is `nl_bytes`, the bytes of the neighbour structures (max over the window); "
+            "MB = 10⁶ bytes.",
+            "- Verdicts: *reproduced* when the whole interval lies in the `reproduced` band, *partly* when "
+            "it lies in the `partly` band but not wholly in the reproduced one, *not reproduced* when it lies "
+            "wholly outside the partly band, *unresolved* otherwise (the note says what would resolve it), "
+            "*not measured* when the run cannot support the claim (missing results, N < 5 000, too few "
+            "points for a trend). Claims that count points (fractions) count a point only when the "
+            "interval of its margin lies above 0 (above the claim's `tie_within` where it has one); a "
+            "margin within ±tie_within is a tie, not a ranking, and does not count; a point whose "
+            "interval straddles is undecided and widens the fraction's interval.",
+            "", "## Summary", "",
+            ", ".join(f"{counts.get(v, 0)} {v}" for v in VERDICTS) + f" (of {len(results)} claims); "
+            f"{len(figures)} figures and tables drawn, {len(skipped)} skipped.", ""]
+    out += ["Targets:", ""] + targets([r for _, r in results]) + [""]
     out += ["## Figures", ""]
     for exp, sentence in figures:
         out += [f"### {exp['figure']}: {exp['title']}", ""]
@@ -129,44 +303,47 @@ def build(run_dir, exp_dir):
         out += [sentence, ""]
     if skipped:
         out += ["Skipped:", ""] + [f"- {s}" for s in skipped] + [""]
-    out += ["## Claims", "", "| Figure | Claim | Paper | Measured | Verdict | Note |",
+    out += ["## Claims", "", "| Figure | Claim | Paper | Measured [95 % interval] | Verdict | Note |",
             "|---|---|---|---|---|---|"]
     for exp, r in results:
-        tol = r["tolerance"]
-        rule = (f"reproduced if {fmt_interval(tol['reproduced'], r['unit'])}, "
-                f"partly if {fmt_interval(tol['partly'], r['unit'])}")
-        note = f"{r['note']}. {rule}" if r["note"] else rule
         out.append(f"| {exp['figure']} | {r['text']} (`{r['id']}`) | {fmt(r['paper_value'], r['unit'])} "
-                   f"| {fmt(r['measured'], r['unit'])} | {r['verdict']} | {note} |")
+                   f"| {fmt_ci(r['value'], r['ci_low'], r['ci_high'], r['unit'])} | {r['verdict']} "
+                   f"| {claim_note(r)} |")
     failed = errors(df)
     if failed:
         out += ["", "## Benchmarks that reported an error", ""] + \
             [f"- `{name}`: {msg}" for name, msg in failed]
     out += ["", "## Sources of the claims", ""] + \
         [f"- `{r['id']}`: \"{r['source']}\"" for _, r in results]
-    return "\n".join(out) + "\n", counts, len(figures), len(skipped)
+    return "\n".join(out) + "\n", records, counts, len(figures), len(skipped)
 
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("results_dir", type=pathlib.Path, help="results/<run-id>")
     p.add_argument("--experiments-dir", type=pathlib.Path, default=HERE.parent / "experiments")
+    p.add_argument("--resamples", type=int, default=None,
+                   help=f"bootstrap replicates per claim (default {S.RESAMPLES}, {TINY_RESAMPLES} for a tiny "
+                        "run; figures use a quarter, at least 50)")
     p.add_argument("--publish", type=pathlib.Path, metavar="FILE",
                    help="also write the report to FILE (e.g. results/REPRODUCTION.md, the "
                         "reference copy), its figure links rewritten to point into the run folder")
     args = p.parse_args(argv)
+    if args.resamples is not None and args.resamples < 50:
+        p.error(f"--resamples {args.resamples}: a 95 % percentile interval needs at least 50 replicates")
     try:
-        text, counts, drawn, skipped = build(args.results_dir, args.experiments_dir)
+        text, records, counts, drawn, skipped = build(args.results_dir, args.experiments_dir, args.resamples)
     except ResultsError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    write_atomic(args.results_dir / "claims.json", json.dumps(records, indent=1, ensure_ascii=False) + "\n")
     write_atomic(args.results_dir / "REPRODUCTION.md", text)
     if args.publish:
         prefix = os.path.relpath(args.results_dir.resolve(), args.publish.resolve().parent)
         write_atomic(args.publish, text.replace("](figures/", f"]({prefix}/figures/")
                      .replace("](table1.md)", f"]({prefix}/table1.md)"))
         print(f"wrote {args.publish} (links into {prefix}/)")
-    print(f"wrote {args.results_dir / 'REPRODUCTION.md'}: "
+    print(f"wrote {args.results_dir / 'REPRODUCTION.md'} and claims.json: "
           + ", ".join(f"{counts.get(v, 0)} {v}" for v in VERDICTS)
           + f"; {drawn} figures/tables drawn, {skipped} skipped")
     return 0

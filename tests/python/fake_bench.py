@@ -1,11 +1,18 @@
 #!/usr/bin/python3
 """Stand-in for build/benchmarks/sphnl_bench (docs/CONTRACTS.md §2) for the
 harness tests: same arguments, Google Benchmark 1.7.1-shaped console output
-and JSON, plausible timings that follow the paper's trends, deterministic
-from a seed. Runs in milliseconds.
+and JSON, plausible timings that follow the paper's trends. Runs in
+milliseconds. Like GB 1.7.1 it honours --benchmark_enable_random_interleaving
+(repetitions in a random order, reported per configuration when all are done)
+and --benchmark_min_warmup_time > 0 (one discarded call per configuration
+first); like sphnl_bench every entry carries the counter `run_sequence`.
+Timing noise is drawn per process (seed, name, repetition and process id),
+so every round (process) measures afresh; its order likewise.
 
 Test knobs (flag or environment variable):
   --fake-seed S          FAKE_BENCH_SEED     noise seed (default 1)
+  --fake-noise R         FAKE_BENCH_NOISE    relative noise of a repetition (default 0.02)
+  --fake-nonce X         FAKE_BENCH_NONCE    replaces the process id in the noise seed
   --fake-regress K:V=F   FAKE_BENCH_REGRESS  multiply the time of configs whose
                                              name has segment K:V by F (comma list)
   --fake-error K:V       FAKE_BENCH_ERROR    report configs with segment K:V as errors
@@ -21,8 +28,8 @@ import random
 import sys
 import time
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "plots"))
-import results as R  # noqa: E402
+# experiments/run.py starts a .py bench with the repository root on PYTHONPATH.
+from harness import results as R
 
 GB_LINE = "-" * 100
 
@@ -66,6 +73,7 @@ def memory_model(p):
 
 def counters(p, t, share_list, steps):
     """The user counters of CONTRACTS.md for one `step` repetition."""
+    t *= {0.2: 0.97, 0.5: 1.04}.get(p.get("flow_time", 0.35), 1.0)  # the flow spreads
     rebuilds = steps if p["list"] == "cll" else max(1, math.ceil(steps / p["ns"]))
     return {"n": p["n"], "n_fluid": int(p["n"] * 0.4), "window_steps": steps,
             "s_per_step": t, "s_neighbour_list": t * share_list,
@@ -75,7 +83,7 @@ def counters(p, t, share_list, steps):
             "max_steps_per_list": math.ceil(steps / rebuilds),
             "candidates_per_particle": 120.0, "interactions_per_particle": 55.0,
             "pairs_per_s": 27.5 * p["n"] / t, "vl_misses": 0,
-            "s_per_particle_step": t / p["n"]}
+            "s_per_particle_step": t / p["n"], "snapshot_time": p.get("flow_time", 0.35) + 1e-4}
 
 
 def parse_args(argv):
@@ -88,6 +96,10 @@ def parse_args(argv):
     p.add_argument("--benchmark_out_format", default="json")
     p.add_argument("--benchmark_repetitions", type=int, default=1)
     p.add_argument("--benchmark_min_time", default="0")
+    p.add_argument("--benchmark_min_warmup_time", type=float, default=0.0)
+    p.add_argument("--benchmark_enable_random_interleaving", default="false")
+    p.add_argument("--fake-noise", type=float, default=float(env("FAKE_BENCH_NOISE", "0.02")))
+    p.add_argument("--fake-nonce", default=env("FAKE_BENCH_NONCE", str(os.getpid())))
     p.add_argument("--fake-seed", default=env("FAKE_BENCH_SEED", "1"))
     p.add_argument("--fake-regress", default=env("FAKE_BENCH_REGRESS", ""))
     p.add_argument("--fake-error", default=env("FAKE_BENCH_ERROR", ""))
@@ -112,45 +124,57 @@ def main(argv=None):
           "***WARNING*** Library was built as DEBUG. Timings may be affected.", file=sys.stderr)
     print(f"{GB_LINE}\n{'Benchmark':<60}{'Time':>13}{'CPU':>13} Iterations UserCounters...\n{GB_LINE}",
           flush=True)
-    entries = []
     points = R.sweep_points(exp, size)
     if args.fake_fail:
         points = points[: len(points) // 2]
-    for index, point in enumerate(points):
-        name = R.format_run_name(family, point)
+    names = [R.format_run_name(family, p) for p in points]
+    schedule = [(i, rep) for i in range(len(points)) for rep in range(reps)]
+    if args.benchmark_enable_random_interleaving == "true":
+        random.Random(f"order|{args.fake_seed}|{args.fake_nonce}").shuffle(schedule)
+    runs, warmed, sequence = {i: [] for i in range(len(points))}, set(), 0
+    entries = []
+    for index, rep in schedule:
+        point, name = points[index], names[index]
+        if args.benchmark_min_warmup_time > 0 and index not in warmed:
+            warmed.add(index)
+            sequence += 1  # the discarded warm-up call
         segs = set(name.split("/")[1:])
         factor = math.prod(float(f) for k, f in regress.items() if k in segs)
-        runs = []
-        for rep in range(reps):
-            rng = random.Random(f"{args.fake_seed}|{name}|{rep}")
-            noise = factor * (1 + 0.02 * rng.gauss(0, 1))
-            if family == "step":
-                t, share = step_model(point)
-                ctr = counters(point, t * noise, share, steps)
-                real = ctr["s_per_step"] * steps
-            else:  # cellindex: passes over n particles, >= 2e6 keys in all
-                per = {"sort_x": 1e-9, "sort_xy": 3e-9, "sort_xyz": 4e-9, "hilbert": 9e-9}[point["order"]]
-                passes = max(1, 2_000_000 // point["n"])
-                real = per * point["n"] * passes * noise
-                ctr = {"n": point["n"], "s_per_particle": per * noise,
-                       "cell_keys": 4 * point["n"], "cells": 4 * point["n"]}
-            entry = {"name": name, "family_index": 0, "per_family_instance_index": index,
-                     "run_name": name, "run_type": "iteration", "repetitions": reps,
-                     "repetition_index": rep, "threads": 1, "iterations": 1,
-                     "real_time": real * 1e9, "cpu_time": real * 0.99e9, "time_unit": "ns"}
-            if segs & errs:
-                entry.update(error_occurred=True, error_message="fake error: cell overflow")
-            else:
-                entry.update(ctr)
-            runs.append(entry)
+        rng = random.Random(f"{args.fake_seed}|{name}|{rep}|{args.fake_nonce}")
+        noise = factor * (1 + args.fake_noise * rng.gauss(0, 1))
+        if family == "step":
+            t, share = step_model(point)
+            ctr = counters(point, t * noise, share, steps)
+            real = ctr["s_per_step"] * steps
+        else:  # cellindex: passes over n particles, >= 2e6 keys in all
+            per = {"sort_x": 1e-9, "sort_xy": 3e-9, "sort_xyz": 4e-9, "hilbert": 9e-9}[point["order"]]
+            passes = max(1, 2_000_000 // point["n"])
+            real = per * point["n"] * passes * noise
+            ctr = {"n": point["n"], "s_per_particle": per * noise,
+                   "cell_keys": 4 * point["n"], "cells": 4 * point["n"]}
+        entry = {"name": name, "family_index": 0, "per_family_instance_index": index,
+                 "run_name": name, "run_type": "iteration", "repetitions": reps,
+                 "repetition_index": rep, "threads": 1, "iterations": 1,
+                 "real_time": real * 1e9, "cpu_time": real * 0.99e9, "time_unit": "ns"}
+        if segs & errs:
+            entry.update(error_occurred=True, error_message="fake error: cell overflow")
+        else:
+            entry.update(ctr)
+        entry["run_sequence"] = sequence
+        sequence += 1
+        runs[index].append(entry)
+        time.sleep(args.fake_delay)
+        if len(runs[index]) < reps:
+            continue
+        # GB 1.7.1 reports a configuration when its last repetition is done.
+        for e in sorted(runs[index], key=lambda e: e["repetition_index"]):
             shown = " ERROR OCCURRED: 'fake error'" if segs & errs else \
-                f"{real * 1e3:10.2f} ms {real * 0.99e3:10.2f} ms          1"
+                f"{e['real_time'] * 1e-6:10.2f} ms {e['cpu_time'] * 1e-6:10.2f} ms          1"
             print(f"{name:<60}{shown}", flush=True)
-            time.sleep(args.fake_delay)
-        entries += runs
+            entries.append(e)
         if reps > 1 and not segs & errs:
             for agg in ("mean", "median", "stddev", "cv"):
-                entries.append({**runs[0], "name": f"{name}_{agg}", "run_type": "aggregate",
+                entries.append({**runs[index][0], "name": f"{name}_{agg}", "run_type": "aggregate",
                                 "aggregate_name": agg, "aggregate_unit": "time"})
                 entries[-1].pop("repetition_index")
                 print(f"{name + '_' + agg:<60}{0.0:10.2f} ms", flush=True)

@@ -1,9 +1,10 @@
 """Tests of the Python reproduction harness: experiments/*.json,
-experiments/run.py, plots/results.py, plots/figures.py, plots/claims.py and
+experiments/run.py, harness/results.py, plots/figures.py, plots/claims.py and
 plots/report.py, driven by tests/python/fake_bench.py instead of sphnl_bench.
 
     MPLBACKEND=Agg /usr/bin/python3 -m unittest discover -s tests/python -v
 """
+import collections
 import contextlib
 import io
 import json
@@ -17,24 +18,30 @@ import tempfile
 import unittest
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "plots"))
-sys.path.insert(0, str(REPO / "experiments"))
 os.environ.setdefault("MPLBACKEND", "Agg")
 
-import claims as C  # noqa: E402
-import figures as F  # noqa: E402
-import report  # noqa: E402
-import results as R  # noqa: E402
-import run  # noqa: E402
+# Run from the repository root (`make test`), which `python -m` puts on sys.path.
+from experiments import run  # noqa: E402
+from harness import machine as M  # noqa: E402
+from harness import protocol as P  # noqa: E402
+from harness import results as R  # noqa: E402
+from plots import claims as C  # noqa: E402
+from plots import figures as F  # noqa: E402
+from plots import report  # noqa: E402
 
 FAKE = REPO / "tests" / "python" / "fake_bench.py"
 CONTRACT_NAME = "step/n:31239/gridder:B/order:sort_x/reorder:1/list:cll/ns:1/kgc:0/threads:1"
 
 
+# run.py sees a clean checkout at this revision unless a test says otherwise
+# (the merge refusal depends on the tree; the tests must not).
+CLEAN = {M.TEST_REVISION: "a" * 40, M.TEST_DIRTY: "0"}
+
+
 def run_cli(*args, env=None):
     """experiments/run.py in a subprocess: (exit code, stdout, stderr)."""
-    p = subprocess.run([sys.executable, str(REPO / "experiments" / "run.py"), *map(str, args)],
-                       capture_output=True, text=True, env={**os.environ, **(env or {})})
+    p = subprocess.run([sys.executable, "-m", "experiments.run", *map(str, args)], cwd=REPO,
+                       capture_output=True, text=True, env={**os.environ, **CLEAN, **(env or {})})
     return p.returncode, p.stdout, p.stderr
 
 
@@ -115,22 +122,46 @@ class TestExperiments(unittest.TestCase):
             self.assertIn(needed, ids)
 
     def test_time_budgets(self):
-        total = {s: sum(run.estimate_seconds(e, s) for e in self.exps.values() if e.get("figure"))
-                 for s in R.SIZES}
-        self.assertLess(total["tiny"], 60)
-        self.assertLess(total["default"], 15 * 60, "default must leave room for snapshots in 20 min")
+        """A default `make reproduce` from a fresh clone stays under 25 min on
+        2 cores, even when every experiment adds rounds up to its budget."""
+        chosen = [e for e in self.exps.values() if e.get("figure") and not e.get("uses")]
+        nothing = pathlib.Path(tempfile.gettempdir()) / "sphnl-no-cache"
+        for size, limit in (("tiny", 60), ("default", 25 * 60)):
+            snaps = run.snapshot_seconds(chosen, size, nothing)
+            least = sum(run.estimate_seconds(e, size) for e in chosen) + snaps
+            most = sum(run.most_seconds(e, size) for e in chosen) + snaps
+            self.assertLess(least, limit, size)
+            self.assertLess(most, limit, size)
+            self.assertLessEqual(least, most)
+        self.assertGreater(run.snapshot_seconds(chosen, "default", nothing), 60)
 
-    def test_fig14_window_holds_several_rebuilds(self):
-        exp = self.exps["fig14"]
-        for size in ("default", "full"):
-            self.assertGreaterEqual(exp["window_steps"][size], 3 * max(exp["sweep"][size]["ns"]))
+    def test_every_window_holds_whole_list_lifetimes(self):
+        for exp in self.exps.values():
+            for size in R.SIZES:
+                ok, message = P.window_ok(exp, size)
+                self.assertTrue(ok, message)
+        self.assertGreaterEqual(self.exps["fig14"]["window_steps"]["full"],
+                                3 * max(self.exps["fig14"]["sweep"]["full"]["ns"]))
+
+    def test_improvement_experiments_sweep_three_flow_states(self):
+        for exp_id in ("fig12", "fig14", "fig16", "fig17"):
+            for size in ("default", "full"):
+                self.assertEqual(self.exps[exp_id]["sweep"][size]["flow_time"], [0.2, 0.35, 0.5],
+                                 f"{exp_id} {size}")
+
+    def test_full_keeps_the_papers_n(self):
+        full = {i: set(e["sweep"]["full"].get("n", [])) for i, e in self.exps.items() if not e.get("uses")}
+        self.assertTrue({8000, 300000} <= full["fig16"] and 150000 in full["fig16"])
+        self.assertIn(31239, full["fig14"])
+        self.assertIn(1000000, full["fig12"])
+        self.assertIn(150000, full["fig06"])
 
 
 class TestRunAndLoad(TempDirCase):
     def test_tiny_run_load_and_resume(self):
         out_dir, log = fake_run(self.tmp, "tiny", "--only", "fig06,fig14")
         self.assertIn("[1/2] fig06: 4 configurations", log)
-        self.assertIn("configs done 4/4", log)
+        self.assertIn("round 2, configs done 4/4", log)
         self.assertIn("ETA", log)
         self.assertEqual(sorted(p.name for p in out_dir.iterdir()),
                          ["fig06.json", "fig14.json", "machine.json"])
@@ -139,7 +170,8 @@ class TestRunAndLoad(TempDirCase):
                     "date", "size"):
             self.assertIn(key, machine)
         df = R.load_run(out_dir)
-        self.assertEqual(len(df), 4 + 6)  # tiny: 1 repetition per configuration
+        self.assertEqual(len(df), 2 * (4 + 6))  # tiny: 2 rounds of 1 repetition per configuration
+        self.assertEqual(sorted(df["round"].unique()), [0, 1])
         self.assertEqual(set(df["gridder"]), {"A", "B", "C", "D"})
         self.assertTrue(str(df["n"].dtype).startswith("int"), df["n"].dtype)
         for col in ("s_per_step", "nl_bytes", "n_particles", "s_force", "real_time_s"):
@@ -154,7 +186,8 @@ class TestRunAndLoad(TempDirCase):
     def test_incomplete_result_is_rerun(self):
         out_dir, _ = fake_run(self.tmp, "tiny", "--only", "fig06")
         doc = json.loads((out_dir / "fig06.json").read_text(encoding="utf-8"))
-        doc["benchmarks"].pop()
+        last = doc["benchmarks"][-1]["run_name"]
+        doc["benchmarks"] = [b for b in doc["benchmarks"] if b["run_name"] != last]
         (out_dir / "fig06.json").write_text(json.dumps(doc), encoding="utf-8")
         _, log = fake_run(self.tmp, "tiny", "--only", "fig06")
         self.assertIn("incomplete (1 sweep points missing)", log)
@@ -173,11 +206,18 @@ class TestRunAndLoad(TempDirCase):
         # Without the cap the experiment is incomplete; only the missing N run
         # (another seed, so a rerun of a kept N would show) and are merged in.
         _, log3 = fake_run(self.tmp, "default", "--only", "fig06", env={"FAKE_BENCH_SEED": "9"})
-        self.assertIn("incomplete (8 sweep points missing)", log3)
-        self.assertIn("running only N = 31239, 60000", log3)
-        merged = json.loads(path.read_text(encoding="utf-8"))["benchmarks"]
+        self.assertIn("incomplete (4 sweep points missing)", log3)
+        self.assertIn("running only N = 31239", log3)
+        merged_doc = json.loads(path.read_text(encoding="utf-8"))
+        merged = merged_doc["benchmarks"]
         kept = [b for b in merged if R.parse_run_name(b["run_name"])[1]["n"] <= 16000]
         self.assertEqual(kept, first)
+        # The new rounds are numbered after the kept ones: a round tag names one process.
+        first_rounds = {b["sphnl_round"] for b in first}
+        new_rounds = {b["sphnl_round"] for b in merged if b not in first}
+        self.assertFalse(first_rounds & new_rounds)
+        self.assertEqual(len(merged_doc["sphnl_rounds"]), len(first_rounds) + len(new_rounds))
+        self.assertEqual(len(merged_doc["sphnl_protocol_earlier"]), 1)
         self.assertEqual(R.missing_points(path, R.load_experiments(REPO / "experiments")["fig06"],
                                           "default"), [])
         self.assertEqual(sorted(p.name for p in out_dir.iterdir()), ["fig06.json", "machine.json"])
@@ -203,14 +243,18 @@ class TestRunAndLoad(TempDirCase):
 
     def test_repetitions_aggregates_and_errors(self):
         out_dir, _ = fake_run(self.tmp, "default", "--only", "fig12",
-                              env={"FAKE_BENCH_ERROR": "list:vlc"})
+                              env={"FAKE_BENCH_ERROR": "list:vlc", "FAKE_BENCH_NOISE": "0"})
         df = R.load_run(out_dir)
-        self.assertEqual(len(df), 8 * 3)  # aggregates (_mean, ...) are not rows
+        configs = 4 * 2 * 3  # N x lists x flow states
+        self.assertEqual(len(df), configs * 9)  # 3 rounds x 3; aggregates (_mean, ...) are not rows
         self.assertEqual(sorted(df["repetition_index"].unique()), [0, 1, 2])
+        self.assertEqual(sorted(df["round"].unique()), [0, 1, 2])
+        self.assertEqual(sorted(df["flow_time"].unique()), [0.2, 0.35, 0.5])
         med = R.medians(df)
         self.assertEqual(list(med["list"].unique()), ["cll"])  # error rows dropped
-        self.assertTrue((med["reps"] == 3).all())
-        self.assertEqual(len(R.errors(df)), 4)
+        self.assertTrue((med["reps"] == 9).all())
+        self.assertNotIn("run_sequence", med)  # bookkeeping, not a measurement
+        self.assertEqual(len(R.errors(df)), configs // 2)
 
     def test_missing_binary(self):
         code, _, err = run_cli("--size", "tiny", "--results-dir", self.tmp, "--bench",
@@ -237,6 +281,254 @@ class TestRunAndLoad(TempDirCase):
         (self.tmp / "fig06.json").write_text('{"benchmarks": [', encoding="utf-8")
         with self.assertRaisesRegex(R.ResultsError, "fig06.json"):
             R.load_run(self.tmp)
+
+
+def fake_exp(**over):
+    """A minimal `step` experiment definition (a copy of fig16's shape)."""
+    sweep = {"n": [8000], "gridder": ["B"], "order": ["sort_x"], "reorder": [1],
+             "list": ["cll", "vlc", "vlx"], "ns": [1, 3, 7, 14], "kgc": [0], "threads": [1]}
+    proto = {"min_rounds": 3, "max_rounds": 5, "reps_per_round": 3,
+             "target_halfwidth_pct": 1.0, "budget_s": 100}
+    exp = {"id": "x", "benchmark": "step", "sweep": {s: dict(sweep) for s in R.SIZES},
+           "window_steps": {s: 42 for s in R.SIZES}, "protocol": proto, "claims": []}
+    for key, value in over.items():
+        exp[key] = value
+    return exp
+
+
+class TestProtocolRules(unittest.TestCase):
+    def test_window_must_be_a_multiple_of_every_ns(self):
+        self.assertEqual(P.window_ok(fake_exp(), "default"), (True, ""))
+        ok, message = P.window_ok(fake_exp(window_steps={"default": 40}), "default")
+        self.assertFalse(ok)
+        for part in ("experiments/x.json", "window_steps.default = 40", "lcm 42", "use 42"):
+            self.assertIn(part, message)
+        ok, _ = P.window_ok(fake_exp(window_steps={"default": 28}), "default")  # 28 % 3 != 0
+        self.assertFalse(ok)
+
+    def test_window_must_cover_three_lifetimes(self):
+        exp = fake_exp(window_steps={"default": 14})
+        exp["sweep"]["default"]["ns"] = [7, 14]  # a multiple of both, but one lifetime of 14
+        ok, message = P.window_ok(exp, "default")
+        self.assertFalse(ok)
+        self.assertIn("3 x 14 = 42", message)
+        exp["window_steps"]["default"] = 42
+        self.assertTrue(P.window_ok(exp, "default")[0])
+
+    def test_cll_only_sweeps_have_no_window_rule(self):
+        exp = fake_exp(window_steps={"default": 5})
+        exp["sweep"]["default"]["list"] = ["cll"]
+        self.assertTrue(P.window_ok(exp, "default")[0])
+
+    def test_a_broken_window_stops_the_run_naming_file_and_field(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            exp = json.loads((REPO / "experiments" / "fig16.json").read_text(encoding="utf-8"))
+            exp["window_steps"]["default"] = 20
+            (pathlib.Path(tmp) / "fig16.json").write_text(json.dumps(exp), encoding="utf-8")
+            with self.assertRaisesRegex(R.ResultsError, r"fig16\.json: window_steps\.default = 20"):
+                R.load_experiments(tmp)
+
+    def test_protocol_block(self):
+        self.assertEqual(P.protocol_of(fake_exp(), "default")["reps_per_round"], 3)
+        per_size = fake_exp(protocol={s: {**fake_exp()["protocol"], "budget_s": i + 1}
+                                      for i, s in enumerate(R.SIZES)})
+        self.assertEqual(P.protocol_of(per_size, "full")["budget_s"], 3)
+        for bad, needle in (({"min_rounds": 2}, "at least 3 separate processes"),
+                            ({"reps_per_round": 2}, "at least 9 repetitions"),
+                            ({"max_rounds": 2}, "below min_rounds"),
+                            ({"budget_s": 0}, "protocol.budget_s is 0"),
+                            ({"reps_per_round": 2.5}, "whole number")):
+            with self.assertRaisesRegex(P.ProtocolError, needle):
+                P.protocol_of(fake_exp(protocol={**fake_exp()["protocol"], **bad}), "default")
+        with self.assertRaisesRegex(P.ProtocolError, "experiments/x.json: no 'protocol' block"):
+            P.protocol_of(fake_exp(protocol=None), "default")
+        with self.assertRaisesRegex(P.ProtocolError, "no size 'full'"):
+            P.protocol_of(fake_exp(protocol={"tiny": fake_exp()["protocol"]}), "full")
+
+    def test_bootstrap_halfwidth(self):
+        self.assertEqual(P.median_halfwidth_pct([[2.0] * 3] * 3), 0.0)
+        self.assertEqual(P.median_halfwidth_pct([[1.0]]), math.inf)
+        import numpy as np
+        rng = np.random.default_rng(3)
+        narrow = P.median_halfwidth_pct([1 + 0.001 * rng.standard_normal(9)])
+        wide = P.median_halfwidth_pct([1 + 0.05 * rng.standard_normal(9)])
+        self.assertLess(narrow, 0.2)
+        self.assertGreater(wide, 1.0)
+        # Quiet rounds that disagree: the drift between processes, which
+        # pooling the repetitions would hide, keeps the interval wide.
+        drift = [list(1 + 0.001 * rng.standard_normal(15) + shift) for shift in (0, 0.03, -0.03)]
+        self.assertGreater(P.median_halfwidth_pct(drift), 1.0)
+        self.assertLess(P.median_halfwidth_pct([sum(drift, [])]), 0.5)
+        uneven = [drift[0][:5], drift[1], drift[2][:9]]  # the general path
+        self.assertGreater(P.median_halfwidth_pct(uneven), 1.0)
+
+    def test_stop_reason(self):
+        proto = P.protocol_of(fake_exp(), "default")  # 3-5 rounds, +-1 %, 100 s
+        quiet = {"a": [[1.0] * 3] * 3, "b": [[2.0] * 3] * 3}
+        noisy = {"a": [[1.0, 1.1, 0.9]] * 3, "b": [[2.0] * 3] * 3}
+        self.assertIsNone(P.stop_reason(quiet, proto, 2, 10, 5))  # below the minimum rounds
+        self.assertEqual(P.stop_reason(quiet, proto, 3, 10, 5), P.STOP_TARGET)
+        self.assertIsNone(P.stop_reason(noisy, proto, 3, 10, 5))  # another round fits
+        self.assertEqual(P.stop_reason(noisy, proto, 3, 90, 30), P.STOP_BUDGET)
+        self.assertEqual(P.stop_reason(noisy, proto, 5, 10, 2), P.STOP_MAX)
+        self.assertEqual(P.stop_reason(quiet, proto, 5, 500, 100), P.STOP_TARGET)  # target first
+
+    def test_executed_order_and_warmups(self):
+        entries = [{"run_name": "b", "run_sequence": 3}, {"run_name": "a", "run_sequence": 1},
+                   {"run_name": "b", "run_sequence": 4}, {"run_name": "a", "run_sequence": 5}]
+        self.assertEqual(P.executed_order(entries), (["a", "b", "b", "a"], 2))  # 0 and 2 discarded
+        self.assertEqual(P.executed_order([{"run_name": "a"}]), (["a"], None))
+
+
+def read_doc(path):
+    return json.loads(pathlib.Path(path).read_text(encoding="utf-8"))
+
+
+class TestRounds(TempDirCase):
+    """The round scheduler end to end with the fake bench (default size)."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.base = pathlib.Path(tempfile.mkdtemp(prefix="sphnl-rounds-"))
+        cls.run_dir, cls.log = fake_run(cls.base, "default", "--only", "fig16",
+                                        env={"FAKE_BENCH_NOISE": "0"})
+        cls.doc = read_doc(cls.run_dir / "fig16.json")
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.base, ignore_errors=True)
+
+    def test_every_configuration_in_every_round(self):
+        exp = R.load_experiments(REPO / "experiments")["fig16"]
+        names = {R.format_run_name("step", p) for p in R.sweep_points(exp, "default")}
+        self.assertEqual(len(names), 3 * 3 * 3)  # N x lists x flow states
+        rounds = self.doc["sphnl_rounds"]
+        self.assertEqual([r["round"] for r in rounds], [0, 1, 2])
+        for r in rounds:
+            mine = [b for b in self.doc["benchmarks"] if b["sphnl_round"] == r["round"]]
+            self.assertEqual(collections.Counter(b["run_name"] for b in mine),
+                             collections.Counter({n: 3 for n in names}))
+            self.assertEqual(collections.Counter(r["order"]), collections.Counter({n: 3 for n in names}))
+            self.assertEqual(r["warmups_discarded"], len(names))  # one per configuration
+        self.assertFalse([b for b in self.doc["benchmarks"] if b.get("run_type") != "iteration"])
+
+    def test_order_is_interleaved_random_and_recorded(self):
+        orders = [r["order"] for r in self.doc["sphnl_rounds"]]
+        self.assertEqual(len({tuple(o) for o in orders}), 3, "every round has its own order")
+        for order in orders:
+            blocks = sum(1 for a, b in zip(order, order[1:]) if a != b) + 1
+            self.assertGreater(blocks, 27, "repetitions alternate between configurations")
+            self.assertNotEqual(order, sorted(order))
+
+    def test_protocol_and_noise_record(self):
+        proto = self.doc["sphnl_protocol"]
+        self.assertEqual((proto["rounds"], proto["reps_per_round"], proto["stop_reason"]),
+                         (3, 3, P.STOP_TARGET))
+        self.assertIn("3 rounds (target met)", self.log)
+        for r in self.doc["sphnl_rounds"]:
+            for key in ("started", "ended", "loadavg_before", "loadavg_after", "steal_pct",
+                        "cpu_affinity", "cpu_mhz", "under_load", "git_revision", "bench_sha256"):
+                self.assertIn(key, r)
+            self.assertEqual((r["omp_proc_bind"], r["omp_places"]), ("close", "cores"))
+            self.assertEqual(r["git_revision"], "a" * 40)
+            self.assertEqual(r["bench_sha256"], M.sha256(FAKE))
+            self.assertIsInstance(r["under_load"], bool)
+
+    def test_flow_time_segment(self):
+        names = {b["run_name"] for b in self.doc["benchmarks"]}
+        self.assertTrue(any(n.endswith("/threads:1/flow_time:0.2") for n in names), names)
+        df = R.load_run(self.run_dir)
+        self.assertEqual(sorted(df["flow_time"].unique()), [0.2, 0.35, 0.5])
+
+    def test_noise_adds_rounds_until_max(self):
+        out, log = fake_run(self.tmp, "default", "--only", "table1", env={"FAKE_BENCH_NOISE": "0.05"})
+        proto = read_doc(out / "table1.json")["sphnl_protocol"]
+        self.assertEqual((proto["rounds"], proto["stop_reason"]), (5, P.STOP_MAX))
+        self.assertEqual(len(R.load_run(out)), 2 * 5 * 3)
+        self.assertIn("5 rounds (max rounds)", log)
+
+    def test_a_window_without_the_axis_is_t_035(self):
+        out, _ = fake_run(self.tmp, "tiny", "--only", "fig06")
+        self.assertFalse([b for b in read_doc(out / "fig06.json")["benchmarks"]
+                          if "flow_time" in b["run_name"]])
+        self.assertEqual(set(R.load_run(out)["flow_time"]), {0.35})
+
+
+def strings(value):
+    if isinstance(value, dict):
+        return [s for v in value.values() for s in strings(v)]
+    if isinstance(value, list):
+        return [s for v in value for s in strings(v)]
+    return [value] if isinstance(value, str) else []
+
+
+class TestProvenance(TempDirCase):
+    def test_machine_json_has_no_absolute_path_and_the_cpu(self):
+        out, _ = fake_run(self.tmp, "tiny", "--only", "fig06")
+        machine = read_doc(out / "machine.json")
+        self.assertFalse([s for s in strings(machine) if s.startswith("/") or str(self.tmp) in s
+                          or str(REPO) in s], machine)
+        self.assertEqual(machine["bench"], "tests/python/fake_bench.py")
+        self.assertEqual(machine["bench_sha256"], M.sha256(FAKE))
+        for key in ("cpu_model", "cpu_family", "cpu_model_number", "cpu_stepping", "cpu_mhz",
+                    "cpu_max_mhz", "caches", "caches_sysfs", "loadavg_start", "loadavg_end", "parts"):
+            self.assertIn(key, machine)
+        if M.sysfs_caches():  # where sysfs has them, the caches are never empty
+            self.assertTrue(machine["caches"])
+            self.assertTrue(set(machine["caches_sysfs"]) & {"L1d", "L2"})
+        self.assertEqual(len(machine["loadavg_end"]), 3)
+        self.assertFalse(machine["forced_merge"])
+
+    def test_sysfs_cache_reader(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            for i, (level, kind, size) in enumerate(((1, "Data", "48K"), (1, "Instruction", "32K"),
+                                                     (2, "Unified", "1024K"))):
+                d = pathlib.Path(tmp) / "cpu0" / "cache" / f"index{i}"
+                d.mkdir(parents=True)
+                for name, value in (("level", level), ("type", kind), ("size", size)):
+                    (d / name).write_text(f"{value}\n")
+            old, M.CPU_SYS = M.CPU_SYS, pathlib.Path(tmp)
+            try:
+                self.assertEqual(M.sysfs_caches(), {"L1d": "48K", "L1i": "32K", "L2": "1024K"})
+            finally:
+                M.CPU_SYS = old
+
+    def test_merge_refusal_rules(self):
+        part = {"date": "d1", "git_revision": "a" * 40, "git_dirty": False, "bench_sha256": "1" * 64}
+        self.assertIsNone(M.merge_refusal([part], dict(part)))
+        self.assertIn("uncommitted changes", M.merge_refusal([part], {**part, "git_dirty": True}))
+        self.assertIn("git revision differs", M.merge_refusal([part], {**part, "git_revision": "b" * 40}))
+        self.assertIn("bench binary differs", M.merge_refusal([part], {**part, "bench_sha256": "2" * 64}))
+        self.assertIn("earlier part", M.merge_refusal([{**part, "git_dirty": True}], part))
+
+    def test_merge_of_a_part_is_refused_unless_forced(self):
+        out, _ = fake_run(self.tmp, "default", "--only", "fig06", "--max-n", "16000")
+        before = (out / "fig06.json").read_bytes()
+        for env, needle in (({M.TEST_REVISION: "b" * 40}, "git revision differs"),
+                            ({M.TEST_DIRTY: "1"}, "uncommitted changes")):
+            code, _, err = run_cli("--size", "default", "--results-dir", self.tmp, "--bench", FAKE,
+                                   "--run-id", "r", "--only", "fig06", env=env)
+            self.assertEqual(code, 2, err)
+            self.assertIn(needle, err)
+            self.assertIn("--force-merge", err)
+            self.assertEqual((out / "fig06.json").read_bytes(), before)  # nothing touched
+        code, _, err = run_cli("--size", "default", "--results-dir", self.tmp, "--bench", FAKE,
+                               "--run-id", "r", "--only", "fig06", "--force-merge", "comment-only change",
+                               env={M.TEST_REVISION: "b" * 40})
+        self.assertEqual(code, 0, err)
+        machine = read_doc(out / "machine.json")
+        self.assertTrue(machine["forced_merge"])
+        self.assertIn("comment-only change", machine["forced_merge_reason"])
+        self.assertEqual([p["git_revision"][0] for p in machine["parts"]], ["a", "b"])
+        self.assertTrue(machine["parts"][1]["forced_merge"])
+        rounds = read_doc(out / "fig06.json")["sphnl_rounds"]
+        self.assertEqual([r["round"] for r in rounds], list(range(len(rounds))))
+        self.assertEqual({r["git_revision"][0] for r in rounds}, {"a", "b"})
+
+    def test_force_merge_needs_a_reason(self):
+        code, _, err = run_cli("--size", "tiny", "--bench", FAKE, "--force-merge", " ")
+        self.assertEqual(code, 2)
+        self.assertIn("--force-merge needs a reason", err)
 
 
 class TestFiguresAndReport(TempDirCase):
@@ -284,7 +576,7 @@ class TestFiguresAndReport(TempDirCase):
         with contextlib.redirect_stdout(io.StringIO()):
             self.assertEqual(report.main([str(run_dir)]), 0)
         text = (run_dir / "REPRODUCTION.md").read_text(encoding="utf-8")
-        self.assertIn("| Figure | Claim | Paper | Measured | Verdict | Note |", text)
+        self.assertIn("| Figure | Claim | Paper | Measured [95 % interval] | Verdict | Note |", text)
         self.assertIn("tiny run", text)
         self.assertIn("fig09 (Figure 9): `fig09.json` is missing", text)
         for exp in self.exps.values():
@@ -347,20 +639,19 @@ class TestClaims(unittest.TestCase):
                     for c in e["claims"] if c["id"] == claim_id)
 
     def test_verdict_intervals(self):
-        tol = {"reproduced": [3, None], "partly": [2, None]}
-        self.assertEqual(C.verdict(3.5, tol), "reproduced")
-        self.assertEqual(C.verdict(2.5, tol), "partly")
-        self.assertEqual(C.verdict(1.5, tol), "not reproduced")
-        self.assertEqual(C.verdict(float("nan"), tol), "not measured")
-        self.assertEqual(C.verdict(-13, {"reproduced": [-23, -3], "partly": [None, 0]}), "reproduced")
+        band = {"reproduced": [3, 6], "partly": [2, 10]}
+        self.assertEqual(C.verdict(3.5, 3.5, 3.5, band)[0], "reproduced")
+        self.assertEqual(C.verdict(2.5, 2.5, 2.5, band)[0], "partly")
+        self.assertEqual(C.verdict(1.5, 1.5, 1.5, band)[0], "not reproduced")
+        self.assertEqual(C.verdict(float("nan"), 0, 1, band)[0], "not measured")
 
     def test_claim_that_holds_is_reproduced(self):
         r = C.evaluate(self.claim("A_slower_3x"), self.gridder_data(slow_a=1.0))
         self.assertEqual(r["verdict"], "reproduced", r)
-        self.assertAlmostEqual(r["measured"], 7.5 / 1.25)
+        self.assertAlmostEqual(r["value"], 7.5 / 1.25)
         self.assertIn("paper: N = 150 000", r["note"])
-        self.assertEqual(C.evaluate(self.claim("A_superlinear"), self.gridder_data(1.0))["verdict"],
-                         "reproduced")
+        r = C.evaluate(self.claim("A_superlinear"), self.gridder_data(1.0))
+        self.assertAlmostEqual(r["value"], 1.0)  # t_A / t_B grows as N^1 in gridder_data
 
     def test_claim_that_fails_is_not_reproduced(self):
         r = C.evaluate(self.claim("A_slower_3x"), self.gridder_data(slow_a=0.15))
@@ -381,11 +672,20 @@ class TestClaims(unittest.TestCase):
                          "not measured")
 
     def test_nlnn_fit(self):
-        rows = [({"n": n, "gridder": "B", "reorder": 1}, {"s_per_step": 1e-7 * n * math.log(n)})
-                for n in (8000, 16000, 31239, 60000)]
+        """The claim is the exponent of the candidate pairs per step (N ln N: ~1.1),
+        with the interactions and the runtime per interaction beside it."""
+        rows = [({"n": n, "gridder": "B", "reorder": 1},
+                 {"s_per_step": 1e-7 * n ** 1.3, "candidates_per_particle": 10 * math.log(n),
+                  "interactions_per_particle": 5 * math.log(n)}) for n in (8000, 16000, 31239, 60000)]
         r = C.evaluate(self.claim("neighbour_search_NlnN"), synthetic(rows))
         self.assertEqual(r["verdict"], "reproduced", r)
-        self.assertIn("a·N·ln N fits better", r["note"])
+        self.assertAlmostEqual(r["value"], 1.105, places=2)
+        self.assertAlmostEqual(r["related"]["k_runtime"]["value"], 1.3, places=6)
+        self.assertLess(r["related"]["k_runtime_per_interaction"]["value"], 0.3)
+        quadratic = [(p, {**c, "candidates_per_particle": c["candidates_per_particle"] * p["n"]})
+                     for p, c in rows]
+        self.assertEqual(C.evaluate(self.claim("neighbour_search_NlnN"), synthetic(quadratic))["verdict"],
+                         "not reproduced")
 
     def test_regression_flips_a_claim_end_to_end(self):
         """fake_bench --fake-regress: slowing VL_X turns its gain into a loss."""
@@ -397,7 +697,7 @@ class TestClaims(unittest.TestCase):
             self.assertNotEqual(C.evaluate(c, R.load_run(good))["verdict"], "not reproduced")
             r = C.evaluate(c, R.load_run(bad))
             self.assertEqual(r["verdict"], "not reproduced")
-            self.assertLess(r["measured"], 0)
+            self.assertLess(r["ci_high"], 0)
 
 
 if __name__ == "__main__":

@@ -22,7 +22,7 @@ class TinyPipeline(unittest.TestCase):
         with tempfile.TemporaryDirectory() as tmp:
             results = Path(tmp) / "results"
             run = subprocess.run(
-                [PYTHON, str(ROOT / "experiments" / "run.py"), "--size", "tiny", "--run-id", "e2e",
+                [PYTHON, "-m", "experiments.run", "--size", "tiny", "--run-id", "e2e",
                  "--results-dir", str(results), "--bench", str(bench), "--cache-dir", str(Path(tmp) / "cache")],
                 cwd=ROOT, capture_output=True, text=True, timeout=600)
             self.assertEqual(run.returncode, 0, run.stdout[-2000:] + run.stderr[-2000:])
@@ -40,11 +40,33 @@ class TinyPipeline(unittest.TestCase):
                 self.assertTrue(names, f"{exp_id}: no benchmarks")
                 self.assertFalse([b for b in doc["benchmarks"] if b.get("error_occurred")], f"{exp_id}: errors")
                 self.assertIn("sphnl_git_revision", doc["context"])
+                # The protocol with the real bench: 2 rounds at tiny, each with its
+                # executed order; GB's warm-up call of every configuration is discarded.
+                configs = len(set(names))
+                self.assertEqual([r["round"] for r in doc["sphnl_rounds"]], [0, 1], exp_id)
+                for r in doc["sphnl_rounds"]:
+                    self.assertEqual(sorted(r["order"]), sorted(b["run_name"] for b in doc["benchmarks"]
+                                                                if b["sphnl_round"] == r["round"]))
+                    self.assertEqual(r["warmups_discarded"], configs, exp_id)
+                self.assertIn(doc["sphnl_protocol"]["stop_reason"], ("target met", "max rounds"))
+                if spec["benchmark"] == "step":
+                    self.assertTrue(all(b["nl_bytes"] > 0 for b in doc["benchmarks"]), exp_id)
+                    self.assertTrue(all(b["snapshot_time"] >= 0.2 for b in doc["benchmarks"]), exp_id)
                 ran.append(exp_id)
             self.assertIn("fig06", ran)
             self.assertIn("fig14", ran)
+            # fig16 sweeps three flow states at tiny too: one development run of
+            # the case saved all three snapshots, each window starts from its own.
+            cache = sorted(p.name for p in (Path(tmp) / "cache").glob("*.snap"))
+            for t in ("0.2", "0.35", "0.5"):
+                self.assertTrue([c for c in cache if f"_t{t}_thr" in c], cache)
+            fig16 = json.loads((run_dir / "fig16.json").read_text(encoding="utf-8"))["benchmarks"]
+            for b in fig16:
+                want = float(b["run_name"].rsplit("/flow_time:", 1)[1])
+                self.assertGreaterEqual(b["snapshot_time"], want)
+                self.assertLess(b["snapshot_time"], want + 0.01)
 
-            report = subprocess.run([PYTHON, str(ROOT / "plots" / "report.py"), str(run_dir)],
+            report = subprocess.run([PYTHON, "-m", "plots.report", str(run_dir)],
                                     cwd=ROOT, capture_output=True, text=True, timeout=600,
                                     env={**os.environ, "MPLBACKEND": "Agg"})
             self.assertEqual(report.returncode, 0, report.stdout[-2000:] + report.stderr[-2000:])
@@ -58,8 +80,12 @@ class TinyPipeline(unittest.TestCase):
             for phase in ("Neighbour List", "Force Computation", "System Update"):
                 self.assertIn(f"| {phase} |", table1)
             reproduction = (run_dir / "REPRODUCTION.md").read_text(encoding="utf-8")
-            self.assertIn("| Figure | Claim | Paper | Measured | Verdict | Note |", reproduction)
+            self.assertIn("| Figure | Claim | Paper | Measured [95 % interval] | Verdict | Note |", reproduction)
             self.assertIn(str(run_dir), reproduction)
+            claims = json.loads((run_dir / "claims.json").read_text(encoding="utf-8"))
+            ids = {c["id"] for e in experiments for c in json.loads(
+                (ROOT / "experiments" / f"{e}.json").read_text(encoding="utf-8"))["claims"]}
+            self.assertEqual({c["id"] for c in claims}, ids)
 
 
 if __name__ == "__main__":

@@ -8,20 +8,22 @@ the fake bench start quickly.
 """
 import itertools
 import json
-import os
 import pathlib
 import re
-import tempfile
+
+from harness import protocol as P
 
 SIZES = ("tiny", "default", "full")
 # Name segments of each benchmark family, in the order of CONTRACTS.md §2.
 FAMILY_KEYS = {
     "step": ["n", "gridder", "order", "reorder", "list", "ns", "kgc", "threads",
-             "lattice", "h_coefficient"],
+             "lattice", "h_coefficient", "flow_time"],
     "cellindex": ["order", "n"],
     "search": ["n", "gridder", "order", "reorder", "threads"],
 }
 STEP_AXES = FAMILY_KEYS["step"][:8]            # required axes of a "step" sweep
+# The flow time (s) a step window starts from when the sweep has no flow_time axis.
+DEFAULT_FLOW_TIME = 0.35
 NAME_KEY = {"h_coefficient": "hcoef"}          # sweep axis -> name segment key
 AXIS_OF_KEY = {v: k for k, v in NAME_KEY.items()}
 # Segments Google Benchmark itself may append to a name (->Iterations() etc.).
@@ -31,7 +33,9 @@ GB_FIELDS = {"name", "family_index", "per_family_instance_index", "run_name",
              "run_type", "repetitions", "repetition_index", "threads",
              "iterations", "real_time", "cpu_time", "time_unit",
              "error_occurred", "error_message", "aggregate_name",
-             "aggregate_unit", "label", "big_o", "rms"}
+             "aggregate_unit", "label", "big_o", "rms", "sphnl_round"}
+# Counters that identify a repetition, not a measurement: never medianed.
+BOOKKEEPING = {"repetition_index", "round", "run_sequence"}
 COUNTER_RENAMES = {"n": "n_particles"}         # counter `n` vs name segment `n`
 TIME_UNITS = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}
 _NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
@@ -101,7 +105,9 @@ def point_key(params, axes):
 # ---------------------------------------------------------------- experiments
 def validate_experiment(exp, path):
     where = str(path)
-    for key in ("id", "benchmark", "sweep", "window_steps", "repetitions", "claims"):
+    for key in ("id", "benchmark", "sweep", "window_steps", "protocol", "claims"):
+        if exp.get("uses") and key in ("window_steps", "protocol"):
+            continue
         if key not in exp:
             raise ResultsError(f"{where}: missing key '{key}'")
     if exp["id"] != pathlib.Path(path).stem:
@@ -119,9 +125,19 @@ def validate_experiment(exp, path):
         missing = [a for a in need if a not in sweep]
         if missing:
             raise ResultsError(f"{where}: sweep.{size} lacks axes {missing}")
-        for field in ("window_steps", "repetitions"):
-            if size not in exp[field]:
-                raise ResultsError(f"{where}: {field} has no size '{size}'")
+        if size not in exp["window_steps"]:
+            raise ResultsError(f"{where}: window_steps has no size '{size}'")
+        times = sweep.get("flow_time", [DEFAULT_FLOW_TIME])
+        if not all(isinstance(t, (int, float)) and not isinstance(t, bool) and t > 0 for t in times):
+            raise ResultsError(f"{where}: sweep.{size}.flow_time must list positive times in "
+                               f"seconds, not {times}")
+        try:
+            P.protocol_of(exp, size)
+        except P.ProtocolError as e:
+            raise ResultsError(str(e).replace(f"experiments/{exp['id']}.json", where)) from None
+        ok, message = P.window_ok(exp, size)
+        if not ok:
+            raise ResultsError(message.replace(f"experiments/{exp['id']}.json", where))
     return exp
 
 
@@ -186,6 +202,8 @@ def entry_rows(doc, experiment):
             continue
         run_name = entry.get("run_name", entry["name"])
         family, params = parse_run_name(run_name)
+        if family == "step":  # a name without the segment is a window from t = 0.35 s
+            params.setdefault("flow_time", DEFAULT_FLOW_TIME)
         row = {"experiment": experiment, "family": family, "run_name": run_name}
         row.update(params)
         for key, value in entry.items():
@@ -196,6 +214,7 @@ def entry_rows(doc, experiment):
                 row[col + "_counter" if col in params else col] = value
         scale = TIME_UNITS.get(entry.get("time_unit", "ns"), 1e-9)
         row.update(repetition_index=entry.get("repetition_index", 0),
+                   round=entry.get("sphnl_round", 0),
                    iterations=entry.get("iterations", 1),
                    real_time_s=entry.get("real_time", float("nan")) * scale,
                    cpu_time_s=entry.get("cpu_time", float("nan")) * scale,
@@ -205,16 +224,21 @@ def entry_rows(doc, experiment):
     return rows
 
 
+# JSON files of a run folder that are not benchmark results (docs/CONTRACTS.md).
+NOT_RESULTS = {"machine.json", "claims.json", "replication.json"}
+
+
 def load_run(run_dir):
     """Every <experiment>.json of a run folder as one DataFrame, one row per
-    benchmark iteration entry (machine.json and hidden temp files ignored)."""
+    benchmark iteration entry (the report's own JSON, NOT_RESULTS, and hidden
+    temp files ignored)."""
     import pandas as pd
     run_dir = pathlib.Path(run_dir)
     if not run_dir.is_dir():
         raise ResultsError(f"{run_dir}: no such results folder")
     rows = []
     for path in sorted(run_dir.glob("*.json")):  # glob matches dot files too
-        if path.name != "machine.json" and not path.name.startswith("."):
+        if path.name not in NOT_RESULTS and not path.name.startswith("."):
             rows += entry_rows(read_benchmark_json(path), path.stem)
     df = pd.DataFrame(rows)
     if df.empty:
@@ -245,7 +269,7 @@ def medians(df):
     ok = df[~df["error_occurred"]]
     keys = param_columns(ok)
     numeric = [c for c in ok.columns if c not in keys and c not in _NON_PARAM
-               and c != "repetition_index" and ok[c].dtype.kind in "iuf"]
+               and c not in BOOKKEEPING and ok[c].dtype.kind in "iuf"]
     grouped = ok.groupby(keys, dropna=False, sort=True)
     med = grouped[numeric].median().reset_index()
     for col in keys:  # integer axes read as float where other families lack them
@@ -290,20 +314,3 @@ def errors(df):
         return []
     bad = df[df["error_occurred"]]
     return sorted(set(zip(bad["run_name"], bad["error_message"])))
-
-
-def write_atomic(path, data):
-    """Write text or bytes to `path` through a temp file in the same folder."""
-    path = pathlib.Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data.encode() if isinstance(data, str) else data)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise

@@ -1,0 +1,1 @@
+"""Experiment definitions (*.json) and their driver run.py: `python3 -m experiments.run`."""

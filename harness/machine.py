@@ -1,0 +1,252 @@
+"""Provenance and noise records of a run (docs/CONTRACTS.md, machine.json and
+`sphnl_rounds`): what machine and code measured, and how quiet it was.
+
+Every reader is best effort: a field that cannot be read here is None, never
+a guess. Nothing recorded is an absolute path (results are committed and
+compared between machines).
+"""
+import datetime
+import hashlib
+import os
+import pathlib
+import platform
+import re
+import subprocess
+
+REPO = pathlib.Path(__file__).resolve().parent.parent
+CPU_SYS = pathlib.Path("/sys/devices/system/cpu")
+# A round is flagged `under_load` when others used more than this many cores
+# (load average beyond the bench's own threads), or steal exceeded STEAL_PCT.
+LOAD_MARGIN, STEAL_PCT = 0.5, 1.0
+
+
+def _cmd(*args):
+    try:
+        out = subprocess.run(args, capture_output=True, text=True, timeout=30, cwd=REPO,
+                             env={**os.environ, "LC_ALL": "C"})
+        return out.stdout.strip() if out.returncode == 0 else ""
+    except (OSError, subprocess.TimeoutExpired):
+        return ""
+
+
+def _read(path):
+    try:
+        return pathlib.Path(path).read_text(encoding="utf-8").strip()
+    except (OSError, UnicodeDecodeError):
+        return None
+
+
+def now():
+    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+
+
+# ------------------------------------------------------------------ the code
+# The tests of the merge refusal set these to play a given checkout, whatever
+# the state of the tree they run in.
+TEST_REVISION, TEST_DIRTY = "SPHNL_TEST_GIT_REVISION", "SPHNL_TEST_GIT_DIRTY"
+
+
+def git_revision():
+    return os.environ.get(TEST_REVISION) or _cmd("git", "rev-parse", "HEAD") or None
+
+
+def git_dirty():
+    """Uncommitted changes to the code (results/ written by earlier parts of a
+    run do not count); None outside a git checkout."""
+    if os.environ.get(TEST_DIRTY) in ("0", "1"):
+        return os.environ[TEST_DIRTY] == "1"
+    if not git_revision():
+        return None
+    return bool(_cmd("git", "status", "--porcelain", "--", ".", ":!results"))
+
+
+def sha256(path):
+    try:
+        h = hashlib.sha256()
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                h.update(block)
+        return h.hexdigest()
+    except OSError:
+        return None
+
+
+def relative_to_repo(path):
+    """`path` relative to the repository, or its bare name when outside it
+    (machine.json carries no absolute path)."""
+    path = pathlib.Path(path).resolve()
+    try:
+        return str(path.relative_to(REPO))
+    except ValueError:
+        return f"(outside the repository)/{path.name}"
+
+
+# ------------------------------------------------------------------- the CPU
+def lscpu():
+    rows = (line.split(":", 1) for line in _cmd("lscpu").splitlines() if ":" in line)
+    return {k.strip(): v.strip() for k, v in rows}
+
+
+def proc_cpuinfo():
+    """Fields of the first processor of /proc/cpuinfo, and every `cpu MHz`."""
+    first, mhz = {}, []
+    for block in (_read("/proc/cpuinfo") or "").split("\n\n"):
+        fields = dict((k.strip(), v.strip()) for k, _, v in
+                      (line.partition(":") for line in block.splitlines()) if k.strip())
+        if "cpu MHz" in fields:
+            try:
+                mhz.append(float(fields["cpu MHz"]))
+            except ValueError:
+                pass
+        first = first or fields
+    return first, mhz
+
+
+def sysfs_caches(cpu=0):
+    """{'L1d': '48K', 'L1i': '32K', 'L2': '1024K', 'L3': '32768K'} of one CPU
+    from /sys/devices/system/cpu/cpuN/cache/index*/{level,type,size}."""
+    out = {}
+    for index in sorted((CPU_SYS / f"cpu{cpu}" / "cache").glob("index*")):
+        level, kind, size = (_read(index / f) for f in ("level", "type", "size"))
+        if level and size:
+            suffix = {"Data": "d", "Instruction": "i"}.get(kind, "")
+            out[f"L{level}{suffix}"] = size
+    return out
+
+
+def cpu_mhz(cpus=None):
+    """Current clock of each CPU in `cpus` (MHz): sysfs scaling_cur_freq where
+    readable, else /proc/cpuinfo's `cpu MHz`; [] when neither is."""
+    cpus = sorted(cpus if cpus is not None else affinity() or [])
+    sysfs = [_read(CPU_SYS / f"cpu{c}" / "cpufreq" / "scaling_cur_freq") for c in cpus]
+    if sysfs and all(v and v.isdigit() for v in sysfs):
+        return [int(v) / 1000.0 for v in sysfs]
+    _, mhz = proc_cpuinfo()
+    return [mhz[c] for c in cpus if c < len(mhz)] if mhz else []
+
+
+def max_mhz(cpu_fields):
+    value = _read(CPU_SYS / "cpu0" / "cpufreq" / "cpuinfo_max_freq")
+    if value and value.isdigit():
+        return int(value) / 1000.0
+    try:
+        return float(cpu_fields.get("CPU max MHz", ""))
+    except ValueError:
+        return None
+
+
+def affinity():
+    try:
+        return sorted(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return None
+
+
+def loadavg():
+    text = _read("/proc/loadavg")
+    try:
+        return [float(v) for v in text.split()[:3]] if text else None
+    except ValueError:
+        return None
+
+
+def cpu_jiffies():
+    """(busy, steal, total) jiffies of all CPUs from the first line of /proc/stat."""
+    text = _read("/proc/stat")
+    if not text or not text.startswith("cpu "):
+        return None
+    v = [int(x) for x in text.splitlines()[0].split()[1:]]
+    v += [0] * (8 - len(v))
+    idle = v[3] + v[4]                 # idle + iowait
+    steal = v[7]
+    total = sum(v[:8])                 # guest time is already inside user/nice
+    return total - idle - steal, steal, total
+
+
+def machine_info():
+    """CPU, clock, caches, memory, compiler and OS of this machine."""
+    cpu = lscpu()
+    first, mhz = proc_cpuinfo()
+
+    def number(key, fallback=None):
+        value = cpu.get(key) or first.get(fallback or "", "")
+        return int(value) if str(value).isdigit() else None
+    mem = re.search(r"MemTotal:\s+(\d+)", _read("/proc/meminfo") or "")
+    sockets, per_socket = number("Socket(s)"), number("Core(s) per socket")
+    lscpu_caches = {k.replace(" cache", ""): cpu[k] for k in
+                    ("L1d cache", "L1i cache", "L2 cache", "L3 cache") if k in cpu}
+    from_sysfs = sysfs_caches()
+    return {
+        "cpu_model": cpu.get("Model name") or first.get("model name") or platform.processor() or None,
+        "cpu_vendor": cpu.get("Vendor ID") or first.get("vendor_id"),
+        "cpu_family": number("CPU family", "cpu family"),
+        "cpu_model_number": number("Model", "model"),
+        "cpu_stepping": number("Stepping", "stepping"),
+        "cpu_mhz": round(sum(mhz) / len(mhz), 1) if mhz else None,
+        "cpu_max_mhz": max_mhz(cpu),
+        "logical_cpus": number("CPU(s)") or os.cpu_count(),
+        "cores": sockets * per_socket if sockets and per_socket else None,
+        "threads_per_core": number("Thread(s) per core"),
+        "caches": lscpu_caches or from_sysfs,
+        "caches_source": "lscpu" if lscpu_caches else "sysfs" if from_sysfs else None,
+        "caches_sysfs": from_sysfs,
+        "memory_bytes": int(mem.group(1)) * 1024 if mem else None,
+        "compiler": (_cmd("c++", "--version").splitlines() or [None])[0],
+        "os": platform.platform(),
+        "python": platform.python_version(),
+    }
+
+
+# ---------------------------------------------------------------- the rounds
+class NoiseProbe:
+    """The noise record of one round: taken just before the bench starts and
+    just after it ends (docs/CONTRACTS.md `sphnl_rounds`)."""
+
+    def __init__(self, bench_threads):
+        self.bench_threads = bench_threads
+        self.started, self.load_before = now(), loadavg()
+        self.jiffies_before = cpu_jiffies()
+        self.children_before = os.times()
+
+    def finish(self, env):
+        after, children = cpu_jiffies(), os.times()
+        steal_pct = other_cores = None
+        if self.jiffies_before and after:
+            d_busy, d_steal, d_total = (a - b for a, b in zip(after, self.jiffies_before))
+            steal_pct = round(100.0 * d_steal / d_total, 2) if d_total > 0 else 0.0
+            ticks = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+            wall_ticks = d_total / max(1, os.cpu_count() or 1)  # jiffies per CPU = wall time
+            own = ((children.children_user - self.children_before.children_user) +
+                   (children.children_system - self.children_before.children_system)) * ticks
+            other_cores = round(max(0.0, d_busy - own) / wall_ticks, 2) if wall_ticks > 0 else None
+        load_after = loadavg()
+        allowance = self.bench_threads + LOAD_MARGIN
+        loaded = any(v is not None and v[0] > allowance for v in (self.load_before, load_after))
+        loaded = loaded or (steal_pct or 0) > STEAL_PCT or (other_cores or 0) > LOAD_MARGIN
+        return {"started": self.started, "ended": now(),
+                "loadavg_before": self.load_before, "loadavg_after": load_after,
+                "steal_pct": steal_pct, "other_busy_cores": other_cores,
+                "cpu_affinity": affinity(),
+                "omp_proc_bind": env.get("OMP_PROC_BIND"), "omp_places": env.get("OMP_PLACES"),
+                "cpu_mhz": cpu_mhz(), "under_load": bool(loaded)}
+
+
+# ----------------------------------------------------------------- the parts
+def merge_refusal(earlier_parts, part):
+    """Why the results of `part` (this invocation) must not be merged into a
+    run folder whose earlier parts are `earlier_parts`, or None when they may:
+    a dirty tree, or a revision or bench binary that differs from an earlier
+    part's, would mix measurements of different code."""
+    if part.get("git_dirty"):
+        return ("the working tree has uncommitted changes to the code (git status, results/ "
+                "aside); commit them, or measure into a new run folder")
+    for old in earlier_parts:
+        if old.get("git_dirty"):
+            return (f"an earlier part ({old.get('date')}) was measured from a dirty tree; "
+                    "measure into a new run folder")
+        for key, what in (("git_revision", "git revision"), ("bench_sha256", "bench binary")):
+            if old.get(key) and part.get(key) and old[key] != part[key]:
+                return (f"the {what} differs from an earlier part's ({old.get('date')}: "
+                        f"{old[key][:12]} here {part[key][:12]}); measure into a new run folder "
+                        "or rebuild the earlier revision")
+    return None

@@ -1,0 +1,1 @@
+"""Figures, claims and the report drawn from a results folder: `python3 -m plots.report`."""

@@ -1,0 +1,307 @@
+"""Statistics, verdicts, claims.json and replication (harness/stats.py,
+plots/claims.py, plots/report.py, plots/replicate.py): bootstrap intervals
+on synthetic samples with a known answer, pairing by round, the verdict
+rule, ties, pooling across experiments, and a tiny fake run end to end
+through claims.json and `make replicate`."""
+import contextlib
+import io
+import json
+import math
+import os
+import pathlib
+import shutil
+import subprocess
+import sys
+import tempfile
+import unittest
+
+import numpy as np
+import pandas as pd
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+
+from harness import results as R  # noqa: E402
+from harness import stats as S  # noqa: E402
+from plots import claims as C  # noqa: E402
+from plots import replicate  # noqa: E402
+from plots import report  # noqa: E402
+
+FAKE = REPO / "tests" / "python" / "fake_bench.py"
+BAND = {"reproduced": [3, 6], "partly": [2, 10]}
+
+
+def rows(configs, experiment="x"):
+    """load_run-shaped rows from {(list, n): [[round 0 values], [round 1 values], ...]} (s per step)."""
+    out = []
+    for (lst, n), rounds in configs.items():
+        for k, values in enumerate(rounds):
+            for i, v in enumerate(values):
+                out.append({"experiment": experiment, "family": "step", "n": n, "gridder": "B",
+                            "order": "sort_x", "reorder": 1, "list": lst, "ns": 7, "kgc": 0, "threads": 1,
+                            "flow_time": 0.35, "round": k, "repetition_index": i, "error_occurred": False,
+                            "error_message": "", "run_name": f"step/n:{n}/list:{lst}",
+                            "n_particles": n, "s_per_step": v, "nl_bytes": 1000.0})
+    return pd.DataFrame(out)
+
+
+class TestBootstrap(unittest.TestCase):
+    def test_median_ci_signature_and_degenerate_cases(self):
+        med, lo, hi = S.median_ci([3.0, 1.0, 2.0], level=0.95, seed=0)
+        self.assertEqual(med, 2.0)
+        self.assertLessEqual(lo, med)
+        self.assertGreaterEqual(hi, med)
+        self.assertEqual(S.median_ci([5.0]), (5.0, 5.0, 5.0))
+        self.assertTrue(all(math.isnan(v) for v in S.median_ci([])))
+        self.assertEqual(S.median_ci([1, 2, 3, 4], seed=7), S.median_ci([1, 2, 3, 4], seed=7))
+
+    def test_median_ci_coverage_is_close_to_95_percent(self):
+        """Known answer: the median of a lognormal(0, 0.3) is exactly 1. Over
+        400 samples of 15 the 95 % interval must cover it 90-99 % of the time
+        (percentile intervals of a median are conservative at small n)."""
+        rng = np.random.default_rng(2024)
+        hits = 0
+        for k in range(400):
+            _, lo, hi = S.median_ci(rng.lognormal(0.0, 0.3, size=15), seed=k, resamples=500)
+            hits += lo <= 1.0 <= hi
+        self.assertGreaterEqual(hits / 400, 0.90)
+        self.assertLessEqual(hits / 400, 0.99)
+
+    def test_interval_narrows_with_more_samples(self):
+        rng = np.random.default_rng(1)
+        _, a, b = S.median_ci(rng.normal(size=9))
+        _, c, d = S.median_ci(rng.normal(size=900))
+        self.assertLess(d - c, (b - a) / 3)
+
+    def test_paired_by_round_cancels_drift_between_rounds(self):
+        """Each round shifts A and B by the same factor (drift between
+        processes); A / B is 0.8 in every round. Paired by round the interval
+        is tight around 0.8; with B's rounds shuffled (no pairing) it is not."""
+        rng = np.random.default_rng(3)
+        drift = [1.0, 1.4, 0.7, 1.2, 0.9]
+        a = [d * 0.8 * (1 + 0.005 * rng.standard_normal(3)) for d in drift]
+        b = [d * 1.0 * (1 + 0.005 * rng.standard_normal(3)) for d in drift]
+        value, lo, hi = S.paired_ratio_ci(a, b)
+        self.assertLessEqual(lo, 0.8)
+        self.assertGreaterEqual(hi, 0.8)
+        self.assertLess(hi - lo, 0.05)
+        _, ulo, uhi = S.paired_ratio_ci(a, [b[i] for i in (2, 0, 4, 1, 3)])
+        self.assertGreater(uhi - ulo, 3 * (hi - lo))
+        imp, ilo, ihi = S.paired_ratio_ci(a, b, improvement=True)
+        self.assertAlmostEqual(imp, 100 * (1 - value), places=9)
+        self.assertLessEqual(ilo, 20.0)
+        self.assertGreaterEqual(ihi, 20.0)
+
+    def test_old_files_resample_each_repetition(self):
+        """A single round (old files: every entry reads round 0) resamples the
+        repetitions: the interval is not zero-width."""
+        boot = S.RoundBootstrap(rows({("cll", 8000): [[1.0, 1.1, 0.9, 1.05, 0.95]]}), resamples=200)
+        self.assertEqual(int(boot.point["rounds"].iloc[0]), 5)
+        value, lo, hi = boot.interval(lambda m: float(m["t"].iloc[0]))
+        self.assertEqual(value, 1.0)
+        self.assertLess(lo, hi)
+
+    def test_a_missing_round_is_left_out_not_zero(self):
+        data = rows({("cll", 8000): [[1.0], [1.1], [0.9]], ("vlx", 8000): [[0.9], [1.0]]})
+        boot = S.RoundBootstrap(data, resamples=200)
+        self.assertFalse(np.isnan(boot.rep).all(axis=(0, 2)).any())
+        self.assertTrue(((boot.rep[:, :, boot.numeric.index("s_per_step")] > 0.5)
+                         | np.isnan(boot.rep[:, :, boot.numeric.index("s_per_step")])).all())
+
+
+class TestVerdictRule(unittest.TestCase):
+    def test_inside_partly_outside(self):
+        self.assertEqual(C.verdict(4, 3.5, 5.5, BAND), ("reproduced", ""))
+        self.assertEqual(C.verdict(4, 2.5, 7, BAND)[0], "partly")   # straddles 6, inside partly
+        self.assertEqual(C.verdict(11, 10.5, 12, BAND)[0], "not reproduced")
+        self.assertEqual(C.verdict(1, 0.5, 1.5, BAND)[0], "not reproduced")
+
+    def test_straddling_the_partly_band_is_unresolved_with_what_resolves_it(self):
+        verdict, why = C.verdict(2.5, 1.0, 3.0, BAND)
+        self.assertEqual(verdict, "unresolved")
+        self.assertIn("more rounds", why)
+        self.assertIn("3.0x", why)   # reaches 1.5 below the value, 0.5 from the edge 2
+        self.assertIn("band edge 2", why)
+        verdict, why = C.verdict(2.0, 1.5, 2.5, BAND)
+        self.assertEqual(verdict, "unresolved")
+        self.assertIn("on the band edge", why)
+
+    def test_not_measured(self):
+        self.assertEqual(C.verdict(None, None, None, BAND)[0], "not measured")
+        self.assertEqual(C.verdict(4, float("nan"), 5, BAND)[0], "not measured")
+
+    def test_every_band_is_two_sided_and_justified(self):
+        for exp in R.load_experiments(REPO / "experiments").values():
+            for c in exp["claims"]:
+                C.validate_claim(c, exp["id"])  # raises on a one-sided band or no reason
+
+    def test_bad_bands_are_refused_with_the_fix(self):
+        good = {"id": "c", "tolerance": {"reproduced": [0, 1], "partly": [0, 2]}, "band_reason": "why"}
+        C.validate_claim(good, "e.json")
+        for bad, words in (({"tolerance": {"reproduced": [0, None], "partly": [0, 2]}}, "two finite numbers"),
+                           ({"tolerance": {"reproduced": [0, 3], "partly": [0, 2]}}, "inside the partly"),
+                           ({"band_reason": " "}, "band_reason")):
+            with self.assertRaises(R.ResultsError) as e:
+                C.validate_claim({**good, **bad}, "e.json")
+            self.assertIn(words, str(e.exception))
+            self.assertIn("e.json: claim 'c'", str(e.exception))
+
+
+class TestTiesAndPooling(unittest.TestCase):
+    CLAIM = {"id": "vlx_faster_than_vlc_all_N", "tolerance": {"reproduced": [1, 1], "partly": [0.5, 1]},
+             "band_reason": "test", "min_n": 1000, "unit": "fraction"}
+
+    def data(self, vlx_at_16k):
+        noise = [[1.0, 1.01], [0.99, 1.0], [1.01, 0.995]]
+        return rows({("vlc", 8000): noise, ("vlx", 8000): [[0.8 * v for v in r] for r in noise],
+                     ("vlc", 16000): noise, ("vlx", 16000): [[vlx_at_16k * v for v in r[::-1]] for r in noise]})
+
+    def test_overlapping_intervals_are_a_tie_not_a_ranking(self):
+        clear = C.evaluate(self.CLAIM, self.data(0.8))
+        self.assertEqual((clear["value"], clear["ci_low"], clear["ci_high"]), (1.0, 1.0, 1.0))
+        self.assertEqual(clear["verdict"], "reproduced")
+        tie = C.evaluate(self.CLAIM, self.data(0.999))   # VL_X 0.1 % faster: within the noise
+        self.assertEqual((tie["ci_low"], tie["ci_high"]), (0.5, 1.0))
+        self.assertIn("1 undecided", tie["note"])
+        self.assertEqual(tie["verdict"], "partly")
+        self.assertIn("more rounds", tie["resolve"] or "more rounds")
+
+    def test_a_margin_within_the_tie_tolerance_is_not_a_ranking(self):
+        """Memory does not vary between repetitions: 4 bytes in 10^6 is a zero-width
+        interval, but with tie_within = 1 % it is a tie, and a tie does not count."""
+        claim = {**self.CLAIM, "id": "vlx_lighter_than_vlc", "at_n": 8000, "tie_within": 0.01}
+        data = rows({("vlc", 8000): [[1.0], [1.0], [1.0]], ("vlx", 8000): [[0.9], [0.9], [0.9]]})
+        data.loc[data["list"] == "vlx", "nl_bytes"] = 1000.0 - 0.004
+        data = data.assign(ns=[1, 7, 9] * 2)   # three n_s, one round each of every list
+        data = pd.concat([data.assign(round=k) for k in range(3)])
+        r = C.evaluate(claim, data)
+        self.assertEqual((r["value"], r["ci_low"], r["ci_high"]), (0.0, 0.0, 0.0))
+        self.assertEqual(r["verdict"], "not reproduced")
+        self.assertIn("3 tie(s)", r["note"])
+        r = C.evaluate({**claim, "tie_within": 0.0}, data)   # without a tolerance 4 bytes decide
+        self.assertEqual(r["value"], 1.0)
+
+    def test_pooled_over_experiments_with_each_experiment_beside_it(self):
+        """CLL and VL_X at 8 000 measured in two experiments: the claim reads
+        all repetitions, and each experiment's own value is listed."""
+        claim = {"id": "vlx_gain_ns7_150k", "at_n": 8000, "min_n": 1000, "unit": "%",
+                 "tolerance": {"reproduced": [3.7, 7.7], "partly": [0, 12]}, "band_reason": "test"}
+        one = rows({("cll", 8000): [[1.0, 1.0]] * 3, ("vlx", 8000): [[0.9, 0.9]] * 3}, "fig16")
+        two = rows({("cll", 8000): [[1.0, 1.0]] * 3, ("vlx", 8000): [[0.98, 0.98]] * 3}, "fig17")
+        exp = {"id": "fig16", "claims": [claim]}
+        r = C.Evaluator(pd.concat([one, two]), resamples=200).experiment(exp, [claim])[0]
+        self.assertEqual(r["experiments"], ["fig16", "fig17"])
+        self.assertAlmostEqual(r["value"], 6.0)   # the median of 0.9 and 0.98 over all repetitions
+        got = {p["experiment"]: p["value"] for p in r["per_experiment"]}
+        self.assertAlmostEqual(got["fig16"], 10.0)
+        self.assertAlmostEqual(got["fig17"], 2.0)
+        self.assertEqual(r["repetitions"], 12)
+
+
+class TestFlowStates(unittest.TestCase):
+    def test_improvement_is_measured_per_state_and_pooled_as_their_mean(self):
+        claim = {"id": "vlx_gain_ns7_150k", "at_n": 8000, "min_n": 1000, "unit": "%",
+                 "tolerance": {"reproduced": [3.7, 7.7], "partly": [0, 12]}, "band_reason": "test"}
+        parts = []
+        for flow, vlx in ((0.2, 0.96), (0.35, 0.94), (0.5, 0.92)):
+            d = rows({("cll", 8000): [[1.0, 1.01], [0.99, 1.0], [1.0, 1.0]],
+                      ("vlx", 8000): [[vlx, vlx * 1.01], [vlx * 0.99, vlx], [vlx, vlx]]})
+            parts.append(d.assign(flow_time=flow))
+        r = C.evaluate(claim, pd.concat(parts))
+        per = {p["flow_time"]: p["value"] for p in r["per_flow_time"]}
+        self.assertEqual(sorted(per), [0.2, 0.35, 0.5])
+        self.assertAlmostEqual(per[0.2], 4.0, places=6)
+        self.assertAlmostEqual(per[0.5], 8.0, places=6)
+        self.assertAlmostEqual(r["value"], np.mean(list(per.values())), places=9)
+        self.assertLessEqual(r["ci_low"], r["value"])
+        self.assertGreaterEqual(r["ci_high"], r["value"])
+
+
+class TestStoredResults(unittest.TestCase):
+    def test_old_format_results_still_give_intervals_and_verdicts(self):
+        """results/reference was written before rounds existed: it must load,
+        resample its repetitions and give every fig16 claim an interval."""
+        df = R.load_run(REPO / "results" / "reference")
+        exp = R.load_experiments(REPO / "experiments")["fig16"]
+        got = C.Evaluator(df, resamples=50, per_experiment_resamples=50).experiment(exp, exp["claims"])
+        for r in got:
+            self.assertNotEqual(r["verdict"], "not measured", r["id"])
+            self.assertLessEqual(r["ci_low"], r["value"] + 1e-9, r["id"])
+            self.assertGreaterEqual(r["ci_high"], r["value"] - 1e-9, r["id"])
+        gain = next(r for r in got if r["id"] == "vlx_gain_ns7_150k")
+        self.assertLess(gain["ci_low"], gain["ci_high"])
+
+
+def run_fake(results_dir, seed):
+    env = {**os.environ, "SPHNL_TEST_GIT_REVISION": "a" * 40, "SPHNL_TEST_GIT_DIRTY": "0", "FAKE_BENCH_SEED": str(seed)}
+    p = subprocess.run([sys.executable, "-m", "experiments.run", "--size", "tiny", "--results-dir",
+                        str(results_dir), "--bench", str(FAKE), "--run-id", "r"],
+                       cwd=REPO, capture_output=True, text=True, env=env)
+    if p.returncode:
+        raise AssertionError(f"run.py failed ({p.returncode}):\n{p.stdout}\n{p.stderr}")
+    return pathlib.Path(results_dir) / "r"
+
+
+class TestClaimsJsonAndReplication(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = pathlib.Path(tempfile.mkdtemp(prefix="sphnl-stats-"))
+        cls.a = run_fake(cls.tmp / "a", 1)
+        cls.b = run_fake(cls.tmp / "b", 2)
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.tmp, ignore_errors=True)
+
+    def test_claims_json_schema_on_a_tiny_run(self):
+        with contextlib.redirect_stdout(io.StringIO()):
+            self.assertEqual(report.main([str(self.a), "--resamples", "50"]), 0)
+        claims = json.loads((self.a / "claims.json").read_text(encoding="utf-8"))
+        ids = [c["id"] for e in R.load_experiments(REPO / "experiments").values() for c in e["claims"]]
+        self.assertEqual([c["id"] for c in claims], ids)
+        for c in claims:
+            for key in ("id", "figure", "paper_value", "value", "ci_low", "ci_high", "unit", "at_n",
+                        "band", "verdict", "repetitions"):
+                self.assertIn(key, c)
+            self.assertEqual(set(c["band"]), {"reproduced", "partly"})
+            self.assertIn(c["verdict"], C.VERDICTS)
+            self.assertEqual(c["verdict"], "not measured")   # tiny: N < 5 000
+        self.assertEqual([p.name for p in self.a.iterdir() if p.name.startswith(".")], [])
+        text = (self.a / "REPRODUCTION.md").read_text(encoding="utf-8")
+        self.assertIn("Targets:", text)
+        self.assertIn("## Rounds", text)
+        self.assertNotIn("Caches | ?", text)
+
+    def test_make_replicate_on_two_tiny_runs(self):
+        out = self.tmp / "rep"
+        with contextlib.redirect_stdout(io.StringIO()):  # drawn here with few replicates, for speed
+            for run in (self.a, self.b):
+                self.assertEqual(report.main([str(run), "--resamples", "50"]), 0)
+        p = subprocess.run(["make", "-s", "replicate", f"A={self.a}", f"B={self.b}", f"OUT={out}"],
+                           cwd=REPO, capture_output=True, text=True)
+        self.assertEqual(p.returncode, 0, p.stdout + p.stderr)
+        doc = json.loads((out / "replication.json").read_text(encoding="utf-8"))
+        n = len([c for e in R.load_experiments(REPO / "experiments").values() for c in e["claims"]])
+        self.assertEqual(doc["summary"]["claims"], n)
+        self.assertEqual(doc["summary"]["resolved_in_both"], 0)   # tiny: nothing measured
+        self.assertIn("| Figure | Claim | A | verdict A | B | verdict B | overlap | same verdict |",
+                      (out / "replication.md").read_text(encoding="utf-8"))
+        p = subprocess.run(["make", "-s", "replicate", f"A={self.a}"], cwd=REPO, capture_output=True, text=True)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("needs two run folders", p.stderr)
+
+    def test_compare_counts_overlap_and_agreement(self):
+        a = [{"id": "x", "value": 1.0, "ci_low": 0.9, "ci_high": 1.1, "verdict": "reproduced"},
+             {"id": "y", "value": 5.0, "ci_low": 4.0, "ci_high": 6.0, "verdict": "partly"},
+             {"id": "z", "value": 5.0, "ci_low": 4.0, "ci_high": 6.0, "verdict": "unresolved"}]
+        b = [{"id": "x", "value": 1.05, "ci_low": 1.0, "ci_high": 1.2, "verdict": "reproduced"},
+             {"id": "y", "value": 9.0, "ci_low": 8.0, "ci_high": 10.0, "verdict": "not reproduced"},
+             {"id": "z", "value": 5.0, "ci_low": 4.0, "ci_high": 6.0, "verdict": "partly"}]
+        rows_, s = replicate.compare(a, b)
+        self.assertEqual([r["overlap"] for r in rows_], [True, False, True])
+        self.assertEqual([r["same_verdict"] for r in rows_], [True, False, False])
+        self.assertEqual((s["resolved_in_both"], s["same_verdict_when_resolved_in_both"]), (2, 1))
+        self.assertEqual(s["agreement_when_resolved"], 0.5)
+
+
+if __name__ == "__main__":
+    unittest.main()
