@@ -215,6 +215,24 @@ def bench_env(args):
     return env
 
 
+def validate_experiments(args, experiments):
+    """Every experiment file checked by the bench's own schema (sphnl_bench
+    --validate: unknown or duplicate keys, wrong types, values out of range,
+    with file:line:col) before any benchmark runs, so a misspelt axis cannot
+    run and be saved under the wrong labels."""
+    base = [sys.executable, str(args.bench)] if args.bench.suffix == ".py" else [str(args.bench)]
+    for exp in experiments:
+        path = REPO / "experiments" / (exp["id"] + ".json")
+        try:
+            out = subprocess.run(base + [f"--experiment={path}", f"--size={args.size}", "--validate"],
+                                 capture_output=True, text=True, timeout=60, cwd=REPO, env=bench_env(args))
+        except (OSError, subprocess.TimeoutExpired) as e:
+            raise RunError(f"cannot validate {path.name} with {args.bench}: {e}", 2) from None
+        if out.returncode != 0:
+            raise RunError(f"{path.name} is not a valid experiment file; nothing was run:\n  "
+                           + "\n  ".join((out.stderr or out.stdout).strip().splitlines()[:10]), 2)
+
+
 def bench_command(args, exp, out_tmp, exp_file, reps):
     """One round: every configuration `reps` times, repetitions randomly
     interleaved across configurations, one discarded warm-up each."""
@@ -529,6 +547,7 @@ def main(argv=None):
         if not (args.bench.is_file() and os.access(args.bench, os.X_OK)):
             raise RunError(f"benchmark binary {args.bench} not found or not executable; "
                            "build it first with `make build`", 2)
+        validate_experiments(args, [exp for exp, _ in todo])
         machine_path = out_dir / "machine.json"
         args.part = part_record(args)
         old = read_machine(machine_path)

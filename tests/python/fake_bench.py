@@ -98,6 +98,7 @@ def parse_args(argv):
     p.add_argument("--benchmark_min_time", default="0")
     p.add_argument("--benchmark_min_warmup_time", type=float, default=0.0)
     p.add_argument("--benchmark_enable_random_interleaving", default="false")
+    p.add_argument("--validate", action="store_true")
     p.add_argument("--fake-noise", type=float, default=float(env("FAKE_BENCH_NOISE", "0.02")))
     p.add_argument("--fake-nonce", default=env("FAKE_BENCH_NONCE", str(os.getpid())))
     p.add_argument("--fake-seed", default=env("FAKE_BENCH_SEED", "1"))
@@ -116,6 +117,8 @@ def main(argv=None):
         print(f"invalid --benchmark_min_time={args.benchmark_min_time}", file=sys.stderr)
         return 1
     exp = json.loads(pathlib.Path(args.experiment).read_text(encoding="utf-8"))
+    if args.validate:  # the real bench checks the schema; the stand-in only parses
+        return 0
     family, size, reps = exp["benchmark"], args.size, args.benchmark_repetitions
     steps = exp["window_steps"][size]
     regress = dict(kv.split("=") for kv in args.fake_regress.split(",") if kv)

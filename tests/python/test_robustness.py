@@ -16,7 +16,10 @@ REPO = pathlib.Path(__file__).resolve().parents[2]
 BUILD = pathlib.Path(os.environ.get("SPHNL_BUILD_DIR", REPO / "build"))
 BENCH = BUILD / "benchmarks" / "sphnl_bench"
 SPHNL = BUILD / "sphnl"
-SNAP_1500 = "dambreak_v1_n1500_bcc_h0.866025_t0.35.snap"
+# The snapshot cache key holds the thread count of the development run (all
+# the cores the bench may use); the name without it is the older form, still read.
+SNAP_1500 = f"dambreak_v1_n1500_bcc_h0.866025_t0.35_thr{len(os.sched_getaffinity(0))}.snap"
+SNAP_1500_LEGACY = "dambreak_v1_n1500_bcc_h0.866025_t0.35.snap"
 
 
 def run(cmd, **kw):
@@ -58,6 +61,26 @@ class BenchTest(unittest.TestCase):
             self.assertIn("allowed: n, gridder,", r.stderr)
             self.assertNotIn("step/", r.stdout)  # nothing ran
 
+    def test_run_py_validates_every_experiment_before_running_any(self):
+        """experiments/run.py asks the bench's schema first: a misspelt axis stops
+        the whole run with the file, line and key, before any benchmark."""
+        import types
+        from experiments import run as run_py
+        (self.tmp / "experiments").mkdir()
+        doc = (REPO / "experiments" / "fig06.json").read_text().replace('"gridder"', '"gridderr"')
+        (self.tmp / "experiments" / "fig06.json").write_text(doc)
+        args = types.SimpleNamespace(bench=BENCH, size="tiny")
+        run_py.validate_experiments(args, [{"id": "fig06"}])  # the shipped file passes
+        saved, run_py.REPO = run_py.REPO, self.tmp
+        try:
+            with self.assertRaises(run_py.RunError) as ctx:
+                run_py.validate_experiments(args, [{"id": "fig06"}])
+        finally:
+            run_py.REPO = saved
+        self.assertIn("gridderr", str(ctx.exception))
+        self.assertIn("fig06.json:", str(ctx.exception))
+        self.assertIn("nothing was run", str(ctx.exception))
+
     def test_duplicate_key_is_refused(self):
         exp = self.experiment(lambda d: d.replace('"metric": "s_per_step"', '"metric": "a", "metric": "s_per_step"'))
         r = run([BENCH, f"--experiment={exp}", "--validate"])
@@ -77,6 +100,7 @@ class BenchTest(unittest.TestCase):
         # read nor written, which the benchmark only finds out mid-run.
         cache = self.tmp / "cache"
         (cache / SNAP_1500 / "x").mkdir(parents=True)
+        (cache / SNAP_1500_LEGACY / "x").mkdir(parents=True)
         for reps in ("1", "3"):  # 3 used to abort in ComputeStats, 1 to exit 0
             r = run([BENCH, f"--experiment={REPO / 'experiments' / 'fig06.json'}", "--size=tiny",
                      f"--cache-dir={cache}", "--benchmark_min_time=0", f"--benchmark_repetitions={reps}",
