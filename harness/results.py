@@ -276,6 +276,12 @@ def medians(df):
         if med[col].dtype == float and med[col].notna().all() and (med[col] % 1 == 0).all():
             med[col] = med[col].astype(int)
     med["reps"] = grouped.size().values
+    return derive_columns(med)
+
+
+def derive_columns(med):
+    """The convenience columns every reader of medians uses: t (seconds per
+    step), mem_mb (neighbour-structure MB) and N (particles simulated)."""
     if "s_per_step" in med:
         med["t"] = med["s_per_step"]
     elif "window_steps" in med:

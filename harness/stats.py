@@ -33,6 +33,8 @@ import warnings
 import numpy as np
 import pandas as pd
 
+from harness.results import derive_columns
+
 LEVEL = 0.95
 RESAMPLES = 1000
 ROUND_COLS = ("round", "sphnl_round")  # the round an entry came from (absent in old files)
@@ -118,7 +120,7 @@ class RoundBootstrap:
                 med[col] = med[col].astype(int)
         med["reps"] = grouped.size().values
         med["rounds"] = grouped[ROUND_ID].nunique().values
-        self.point = _derive(med)
+        self.point = derive_columns(med)
         if (med["reps"] == 1).all():  # one value per configuration: nothing to resample
             self.resamples = 1
             self.rep = med[self.numeric].to_numpy(float)[None, :, :]
@@ -171,7 +173,7 @@ class RoundBootstrap:
                 c for c in ("t", "mem_mb", "N") if c in self.point])
         t = pd.concat([fixed, pd.DataFrame(self.rep[b], columns=self.numeric, index=fixed.index)],
                       axis=1)
-        return _derive(t)
+        return derive_columns(t)
 
     def tables(self):
         """The replicate tables, built once if cache_tables was called."""
@@ -223,20 +225,6 @@ def intervals(reps, level=LEVEL):
     for idx in np.ndindex(*reps.shape[1:]):
         lo[idx], hi[idx] = percentile_interval(reps[(slice(None),) + idx], level)
     return lo, hi
-
-
-def _derive(med):
-    """The convenience columns of harness.results.medians: t, mem_mb, N."""
-    if "s_per_step" in med:
-        med["t"] = med["s_per_step"]
-    elif "window_steps" in med:
-        med["t"] = med["real_time_s"] / med["window_steps"]
-    if "nl_bytes" in med:
-        med["mem_mb"] = med["nl_bytes"] / 1e6
-    if "n" in med:
-        med["N"] = med["n_particles"] if "n_particles" in med else med["n"]
-        med["N"] = med["N"].fillna(med["n"]).astype(float)
-    return med
 
 
 def paired_ratio_ci(a_rounds, b_rounds, level=LEVEL, seed=0, resamples=RESAMPLES,

@@ -752,7 +752,7 @@ def _scaled(boot, mask, seed):
     mask = np.asarray(mask)
     factors = np.random.default_rng(seed).uniform(0.5, 2.0, size=(mask.sum(), 1))
     t.loc[mask, boot.numeric] = t.loc[mask, boot.numeric].to_numpy(float) * factors
-    return S._derive(t)
+    return S.derive_columns(t)
 
 
 def _norm_keys(df, keys):
