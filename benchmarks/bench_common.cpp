@@ -9,6 +9,7 @@
 #include <memory>
 #include <sstream>
 
+#include "sphnl/experiment_schema.hpp"
 #include "sphnl/memory_estimate.hpp"
 #include "sphnl/snapshot.hpp"
 
@@ -43,13 +44,30 @@ std::string benchmark_name(const std::string& family, const Point& p, const std:
   std::ostringstream os;
   os << family;
   auto put = [&](const std::string& k, const json& v) {
-    os << '/' << (k == "h_coefficient" ? "hcoef" : k) << ':' << (v.is_string() ? v.get<std::string>() : v.dump());
+    os << '/' << k << ':' << (v.is_string() ? v.get<std::string>() : v.dump());
   };
   for (const auto& k : axis_order)
     if (p.count(k)) put(k, p.at(k));
   for (const auto& [k, v] : p)
     if (std::find(axis_order.begin(), axis_order.end(), k) == axis_order.end()) put(k, v);
   return os.str();
+}
+
+RunConfig run_config_of(const Point& p) {
+  const auto& only_bench = benchmark_only_axes();
+  json j = json::object();
+  for (const auto& [axis, value] : p)
+    if (std::find(only_bench.begin(), only_bench.end(), axis) == only_bench.end()) j[axis] = value;
+  j["progress"] = false;
+  return config_from_json(j);
+}
+
+double flow_time_of(const Point& p) {
+  if (!p.count("flow_time")) return kDefaultFlowTime;
+  const json& v = p.at("flow_time");
+  if (!v.is_number() || v.get<double>() <= 0)
+    throw std::runtime_error("sweep axis flow_time: " + v.dump() + " is not a positive time in seconds");
+  return v.get<double>();
 }
 
 namespace {

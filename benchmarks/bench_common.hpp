@@ -20,11 +20,14 @@ struct Options {
   std::string cache_dir = "results/cache";
 };
 
-/// One point of a sweep: axis name -> value (as JSON scalars).
+/// One point of a sweep: axis name -> value (as JSON scalars). Axis names are
+/// the run-config keys (README "Configuration"), plus the benchmark-only axes
+/// of sphnl::benchmark_only_axes().
 using Point = std::map<std::string, nlohmann::json>;
 /// Cross product of the axes of `sweep` (an object of arrays), in axis order.
 std::vector<Point> cross_product(const nlohmann::json& sweep, const std::vector<std::string>& axis_order);
-/// `family/key:value/...` with the axes in `axis_order`, then any others.
+/// `family/key:value/...` with the axes in `axis_order`, then any others; the
+/// keys are the axis names as they stand (docs/CONTRACTS.md §2).
 std::string benchmark_name(const std::string& family, const Point& p, const std::vector<std::string>& axis_order);
 
 /// The flow state a benchmark starts from: the dam-break case (N, lattice,
@@ -36,6 +39,15 @@ struct FlowState {
   double flow_time = 0;
 };
 inline constexpr double kDefaultFlowTime = 0.35;  // s: the dam has collapsed, the front reaches the obstacle
+
+/// The one place a sweep point becomes a run: every axis that is a run-config
+/// key goes to config_from_json as it stands (so its values are checked there,
+/// and a new config key is a new axis without code here); the benchmark-only
+/// axes (sphnl::benchmark_only_axes()) are left out and read by their own
+/// accessor (flow_time_of). Progress output is off.
+RunConfig run_config_of(const Point& p);
+/// The flow time a step window starts from: the point's `flow_time` (s), else kDefaultFlowTime.
+double flow_time_of(const Point& p);
 
 /// The developed flow `state`, from the cache directory, made when missing or
 /// stale with a CLL run on every core (the cache key holds everything that

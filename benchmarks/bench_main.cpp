@@ -49,16 +49,13 @@ sphnl::MemoryEstimate sweep_memory(const std::string& family, const json& sweep)
   sphnl::MemoryEstimate worst;
   for (const sb::Point& p : sb::cross_product(sweep, {})) {
     sphnl::MemoryEstimate e;
-    const long n = p.at("n").get<long>();
+    const sphnl::RunConfig run = sb::run_config_of(p);
+    const long n = run.particles;
     if (family == "search") {
       // full lists of a cubic lattice with R = 2.6 spacings: 4/3 pi 2.6^3 = 74 entries a point
       e = sphnl::estimate_search_memory(static_cast<std::uint64_t>(n), static_cast<std::uint64_t>(n) * 74);
     } else {
-      sphnl::RunConfig c;
-      c.particles = n;
-      if (p.count("list")) c.list = sphnl::config_from_json({{"list", p.at("list")}}).list;
-      if (p.count("kgc")) c.kgc = sphnl::config_from_json({{"kgc", p.at("kgc")}}).kgc;
-      e = sphnl::estimate_run_memory(c);
+      e = sphnl::estimate_run_memory(run);
       e.bytes += static_cast<double>(n) * 200;  // the cached developed flow beside the timed copy
       e.detail += " + the cached flow";
     }

@@ -15,10 +15,9 @@ namespace sphnl::bench {
 using nlohmann::json;
 
 void register_cellindex_benchmarks(const json& sweep, const Options& opt) {
-  const std::vector<std::string> axes = {"order", "n"};
+  const std::vector<std::string> axes = {"cell_order", "particles"};
   for (const Point& p : cross_product(sweep, axes)) {
-    json j = {{"particles", p.at("n")}, {"cell_order", p.at("order")}, {"progress", false}};
-    const RunConfig cfg = config_from_json(j);
+    const RunConfig cfg = run_config_of(p);
     const std::string name = benchmark_name("cellindex", p, axes);
     benchmark::RegisterBenchmark(name.c_str(), [cfg, cache = opt.cache_dir, name](benchmark::State& st) {
      guarded(name, [&] {
@@ -43,7 +42,7 @@ void register_cellindex_benchmarks(const json& sweep, const Options& opt) {
         }
         seconds = sw.lap();
       }
-      st.counters["n"] = static_cast<double>(ps.size());
+      st.counters["n_particles"] = static_cast<double>(ps.size());
       st.counters["s_per_particle"] = seconds / static_cast<double>(passes * ps.size());
       st.counters["cell_keys"] = static_cast<double>(order->num_keys());
       st.counters["cells"] = static_cast<double>(grid.num_cells());

@@ -1,6 +1,6 @@
 // The `search` family: `sphnl neighbours` as a neighbour-search library. Full
-// neighbour lists (every j != i with r < R) of a simple cubic lattice of n
-// points with R = 2.6 spacings, the layout the search's speed is quoted for (docs/FINDINGS.md).
+// neighbour lists (every j != i with r < R) of a simple cubic lattice of
+// `particles` points with R = 2.6 spacings, the layout the search's speed is quoted for (docs/FINDINGS.md).
 #include <cmath>
 
 #include "bench_common.hpp"
@@ -12,15 +12,14 @@ namespace sphnl::bench {
 using nlohmann::json;
 
 void register_search_benchmarks(const json& sweep) {
-  const std::vector<std::string> axes = {"n", "gridder", "order", "reorder", "threads"};
+  const std::vector<std::string> axes = {"particles", "gridder", "cell_order", "reorder", "threads"};
   for (const Point& p : cross_product(sweep, axes)) {
     SearchOptions so;
-    const RunConfig cfg = config_from_json(
-        {{"gridder", p.at("gridder")}, {"cell_order", p.at("order")}, {"reorder", p.at("reorder")}});
+    const RunConfig cfg = run_config_of(p);
     so.gridder = cfg.gridder;
     so.order = cfg.cell_order;
     so.reorder = cfg.reorder;
-    const long n = p.at("n").get<long>();
+    const long n = cfg.particles;  // points of the cubic lattice (rounded to a cube)
     const std::string name = benchmark_name("search", p, axes);
     benchmark::RegisterBenchmark(name.c_str(), [so, n, name](benchmark::State& st) {
      guarded(name, [&] {
@@ -42,7 +41,7 @@ void register_search_benchmarks(const json& sweep) {
         search.run(x, y, z, 2.6, lists);
         seconds = search.times().build + search.times().search;
       }
-      st.counters["n"] = static_cast<double>(x.size());
+      st.counters["n_particles"] = static_cast<double>(x.size());
       st.counters["entries"] = static_cast<double>(lists.num_entries());
       st.counters["entries_per_s"] = static_cast<double>(lists.num_entries()) / seconds;
       st.counters["s_build"] = search.times().build;

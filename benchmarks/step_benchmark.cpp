@@ -1,7 +1,7 @@
 // The `step` family: a window of dam-break steps from the developed flow, for
-// one combination of N, gridder, cell order, reordering, list, n_s, KGC,
-// threads and (optional axis) the flow time the window starts from. Every
-// Table I phase, memory and list counters are reported.
+// one combination of particles, gridder, cell order, reordering, list, n_s
+// (list_steps), KGC, threads and (optional axis) the flow time the window
+// starts from. Every Table I phase, memory and list counters are reported.
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -15,35 +15,9 @@ using nlohmann::json;
 
 namespace {
 
-const std::vector<std::string> kAxes = {"n", "gridder", "order", "reorder", "list", "ns", "kgc", "threads", "lattice",
-                                        "h_coefficient", "flow_time"};
-
-RunConfig config_for(const Point& p) {
-  json j = json::object();
-  auto take = [&](const char* axis, const char* key) {
-    if (p.count(axis)) j[key] = p.at(axis);
-  };
-  take("n", "particles");
-  take("gridder", "gridder");
-  take("order", "cell_order");
-  take("reorder", "reorder");
-  take("list", "list");
-  take("ns", "list_steps");
-  take("kgc", "kgc");
-  take("threads", "threads");
-  take("lattice", "lattice");
-  take("h_coefficient", "h_coefficient");  // flow_time is not a run setting: it picks the snapshot
-  j["progress"] = false;
-  return config_from_json(j);
-}
-
-double flow_time_of(const Point& p) {
-  if (!p.count("flow_time")) return kDefaultFlowTime;
-  const json& v = p.at("flow_time");
-  if (!v.is_number() || v.get<double>() <= 0)
-    throw std::runtime_error("sweep axis flow_time: " + v.dump() + " is not a positive time in seconds");
-  return v.get<double>();
-}
+// Name segments in this order (docs/CONTRACTS.md §2); an axis not listed comes after them.
+const std::vector<std::string> kAxes = {"particles", "gridder", "cell_order", "reorder", "list", "list_steps",
+                                        "kgc", "threads", "lattice", "h_coefficient", "flow_time"};
 
 void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const std::vector<double>& flow_times,
                int window, const std::string& cache_dir) {
@@ -65,7 +39,7 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
   const PhaseTimes& t = sim.phase_times();
   const NeighbourStats& s = sim.neighbour_stats();
   auto& c = state.counters;
-  c["n"] = n;
+  c["n_particles"] = n;
   c["n_fluid"] = static_cast<double>(sim.case_info().n_fluid);
   c["window_steps"] = steps;
   c["s_per_step"] = t.total() / steps;
@@ -97,7 +71,7 @@ void register_step_benchmarks(const json& sweep, int window, const Options& opt)
   std::sort(flow_times.begin(), flow_times.end());
   flow_times.erase(std::unique(flow_times.begin(), flow_times.end()), flow_times.end());
   for (const Point& p : cross_product(sweep, kAxes)) {
-    const RunConfig cfg = config_for(p);  // validates every value before anything runs
+    const RunConfig cfg = run_config_of(p);  // validates every value before anything runs
     const std::string name = benchmark_name("step", p, kAxes);
     const double flow_time = flow_time_of(p);
     benchmark::RegisterBenchmark(name.c_str(),

@@ -66,15 +66,15 @@ def particle_step_seconds(n):
 def step_seconds(p):
     """Cost model of one step (seconds) of sweep point `p`, for the plan only:
     once running, ETAs come from the rounds measured."""
-    n = p["n"]
+    n = p["particles"]
     base = particle_step_seconds(n) * n
     t = base * (1.05 if p.get("reorder") == 0 else 1.0)
-    if p.get("order", "sort_x") != "sort_x":
+    if p.get("cell_order", "sort_x") != "sort_x":
         t *= 1.03
     if p.get("gridder") == "A":  # insertion shifts when unsorted; 2x when reordered
         t += 1.1e-10 * n * n if p.get("reorder") == 0 else base
     if p.get("list", "cll") != "cll":
-        t *= 0.86 + 0.001 * (p.get("ns", 1) - 4) ** 2
+        t *= 0.86 + 0.001 * (p.get("list_steps", 1) - 4) ** 2
     if p.get("kgc"):
         t *= 1.85
     threads = p.get("threads", 1)
@@ -91,7 +91,7 @@ def round_seconds(exp, size):
         window = exp["window_steps"][size]
         per = [step_seconds(p) * window for p in R.sweep_points(exp, size)]
     else:  # cellindex: >= 2e6 cell keys per iteration; search: one list build
-        per = [0.02 if exp["benchmark"] == "cellindex" else 2e-7 * p["n"]
+        per = [0.02 if exp["benchmark"] == "cellindex" else 2e-7 * p["particles"]
                for p in R.sweep_points(exp, size)]
     return sum(t * (reps + 1) for t in per) + ROUND_OVERHEAD_S
 
@@ -128,7 +128,7 @@ def snapshot_seconds(experiments, size, cache_dir):
         if exp.get("uses") or exp["benchmark"] not in ("step", "cellindex"):
             continue
         for p in R.sweep_points(exp, size):
-            need[p["n"]].add(p.get("flow_time", R.DEFAULT_FLOW_TIME))
+            need[p["particles"]].add(p.get("flow_time", R.DEFAULT_FLOW_TIME))
     def cached(n, t):  # the names of bench_common.cpp (lattice bcc, h coefficient 0.866025)
         stem = cache_dir / f"dambreak_v1_n{n}_bcc_h0.866025_t{R.format_value(float(t))}"
         legacy = t == R.DEFAULT_FLOW_TIME and pathlib.Path(f"{stem}.snap").exists()
@@ -191,14 +191,14 @@ def machine_record(args, part, parts_before, forced):
 
 
 # ------------------------------------------------------------------- running
-def restrict_n(exp, size, keep):
+def restrict_particles(exp, size, keep):
     """`exp` with its sweep's N limited to those for which keep(n) is true
     (unchanged when the sweep has no N axis)."""
     sweep = exp["sweep"].get(size, {})
-    if "n" not in sweep:
+    if "particles" not in sweep:
         return exp
     out = copy.deepcopy(exp)
-    out["sweep"][size]["n"] = [n for n in sweep["n"] if keep(n)]
+    out["sweep"][size]["particles"] = [n for n in sweep["particles"] if keep(n)]
     out["_restricted"] = True  # its sweep is not the file's: the bench gets a copy
     return out
 
@@ -254,25 +254,25 @@ def resume_plan(args, exp, out_path):
     """(experiment to run, earlier document or None): when out_path holds some
     but not all N of the sweep, only the missing N are run; the earlier
     document's entries for the other N (and their rounds) are kept."""
-    if args.force or not out_path.exists() or "n" not in exp["sweep"][args.size]:
+    if args.force or not out_path.exists() or "particles" not in exp["sweep"][args.size]:
         return exp, None
     try:
         doc = R.read_benchmark_json(out_path)
         missing = R.missing_in(doc, exp, args.size)
     except R.ResultsError:
         return exp, None
-    rerun = {R.parse_run_name(name)[1]["n"] for name in missing}
+    rerun = {R.parse_run_name(name)[1]["particles"] for name in missing}
 
     def n_of(entry):
         family, params = R.parse_run_name(entry.get("run_name", entry.get("name", "")))
-        return params.get("n") if family == exp["benchmark"] else None
+        return params.get("particles") if family == exp["benchmark"] else None
     doc["benchmarks"] = [b for b in doc["benchmarks"] if n_of(b) not in (None, *rerun)
                          and b.get("run_type", "iteration") == "iteration"]
     if not doc["benchmarks"]:
         return exp, None
     print(f"  {exp['id']}: keeping {len(doc['benchmarks'])} entries of {out_path.name}; running only "
           f"N = {', '.join(str(n) for n in sorted(rerun))}", flush=True)
-    return restrict_n(exp, args.size, lambda n: n in rerun), doc
+    return restrict_particles(exp, args.size, lambda n: n in rerun), doc
 
 
 def metric_samples(entries, exp):
@@ -518,11 +518,11 @@ def main(argv=None):
         experiments = R.load_experiments(REPO / "experiments")
         chosen = select(experiments, args.only)
         if args.max_n is not None:
-            capped = [restrict_n(e, args.size, lambda n: n <= args.max_n) for e in chosen]
+            capped = [restrict_particles(e, args.size, lambda n: n <= args.max_n) for e in chosen]
             for e in capped:
-                if "n" in e["sweep"][args.size] and not e["sweep"][args.size]["n"]:
+                if "particles" in e["sweep"][args.size] and not e["sweep"][args.size]["particles"]:
                     print(f"{e['id']}: no sweep point with N <= {args.max_n}, left out")
-            chosen = [e for e in capped if e["sweep"][args.size].get("n", True)]
+            chosen = [e for e in capped if e["sweep"][args.size].get("particles", True)]
         out_dir = args.results_dir / args.run_id
         plan = []
         for exp in chosen:

@@ -66,7 +66,7 @@ def compared_ns(exp, size):
     sweep = exp.get("sweep", {}).get(size, {})
     if not any(lst != "cll" for lst in sweep.get("list", [])):
         return []
-    return sorted(set(sweep.get("ns", [])))
+    return sorted(set(sweep.get("list_steps", [])))
 
 
 def window_ok(exp, size):

@@ -14,18 +14,26 @@ import re
 from harness import protocol as P
 
 SIZES = ("tiny", "default", "full")
-# Name segments of each benchmark family, in the order of CONTRACTS.md §2.
+# Name segments of each benchmark family, in the order of CONTRACTS.md §2. Sweep
+# axes, name segment keys and DataFrame columns are one vocabulary: the run-config
+# keys of README "Configuration" (plus flow_time, which picks the snapshot).
 FAMILY_KEYS = {
-    "step": ["n", "gridder", "order", "reorder", "list", "ns", "kgc", "threads",
-             "lattice", "h_coefficient", "flow_time"],
-    "cellindex": ["order", "n"],
-    "search": ["n", "gridder", "order", "reorder", "threads"],
+    "step": ["particles", "gridder", "cell_order", "reorder", "list", "list_steps", "kgc",
+             "threads", "lattice", "h_coefficient", "flow_time"],
+    "cellindex": ["cell_order", "particles"],
+    "search": ["particles", "gridder", "cell_order", "reorder", "threads"],
 }
 STEP_AXES = FAMILY_KEYS["step"][:8]            # required axes of a "step" sweep
 # The flow time (s) a step window starts from when the sweep has no flow_time axis.
 DEFAULT_FLOW_TIME = 0.35
-NAME_KEY = {"h_coefficient": "hcoef"}          # sweep axis -> name segment key
-AXIS_OF_KEY = {v: k for k, v in NAME_KEY.items()}
+# The vocabulary before the run-config keys were used everywhere, kept in this
+# one table so that names and JSON written by older benches still read: stored
+# results (results/full, results/reference, ...) and the base side of `make
+# compare`. Every reader of names and counters goes through it (parse_run_name,
+# canonical_run_name, entry_rows, validate_experiment); nothing writes it.
+OLD_AXES = {"n": "particles", "order": "cell_order", "ns": "list_steps"}  # old sweep axis -> now
+OLD_NAME_KEYS = {**OLD_AXES, "hcoef": "h_coefficient"}  # old name segment key -> now
+OLD_COUNTERS = {"n": "n_particles"}            # old counter -> now (particles simulated)
 # Segments Google Benchmark itself may append to a name (->Iterations() etc.).
 GB_SEGMENT_KEYS = {"iterations", "repetitions", "min_time", "min_warmup_time"}
 # Top-level fields of a Google Benchmark 1.7.1 entry that are not user counters.
@@ -36,7 +44,6 @@ GB_FIELDS = {"name", "family_index", "per_family_instance_index", "run_name",
              "aggregate_unit", "label", "big_o", "rms", "sphnl_round"}
 # Counters that identify a repetition, not a measurement: never medianed.
 BOOKKEEPING = {"repetition_index", "round", "run_sequence"}
-COUNTER_RENAMES = {"n": "n_particles"}         # counter `n` vs name segment `n`
 TIME_UNITS = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}
 _NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 
@@ -61,18 +68,32 @@ def format_value(value):
 
 
 def parse_run_name(run_name):
-    """Split 'step/n:31239/gridder:B/...' into ('step', {'n': 31239, 'gridder': 'B', ...}).
+    """Split 'step/particles:31239/gridder:B/...' into
+    ('step', {'particles': 31239, 'gridder': 'B', ...}).
 
     Segments Google Benchmark adds ('real_time', 'iterations:1', ...) are
-    dropped; 'hcoef' is returned under its axis name 'h_coefficient'.
+    dropped; keys of the old vocabulary ('n', 'order', 'ns', 'hcoef') are
+    returned under their names now (OLD_NAME_KEYS).
     """
     family, *segments = run_name.split("/")
     params = {}
     for seg in segments:
         key, sep, value = seg.partition(":")
         if sep and key not in GB_SEGMENT_KEYS:
-            params[AXIS_OF_KEY.get(key, key)] = parse_value(value)
+            params[OLD_NAME_KEYS.get(key, key)] = parse_value(value)
     return family, params
+
+
+def canonical_run_name(run_name):
+    """The name in today's vocabulary: segment keys of the old one renamed
+    (OLD_NAME_KEYS), values and order kept as written, so that a name of an
+    older bench matches the one the bench writes now."""
+    family, *segments = run_name.split("/")
+    out = [family]
+    for seg in segments:
+        key, sep, value = seg.partition(":")
+        out.append(f"{OLD_NAME_KEYS.get(key, key)}{sep}{value}" if sep else seg)
+    return "/".join(out)
 
 
 def axes_in_order(family, axes):
@@ -82,7 +103,7 @@ def axes_in_order(family, axes):
 
 def format_run_name(family, point):
     """Inverse of parse_run_name, segments in the contract's order."""
-    segs = [f"{NAME_KEY.get(k, k)}:{format_value(point[k])}"
+    segs = [f"{k}:{format_value(point[k])}"
             for k in axes_in_order(family, point)]
     return "/".join([family] + segs)
 
@@ -121,6 +142,10 @@ def validate_experiment(exp, path):
         sweep = exp["sweep"].get(size)
         if sweep is None:
             raise ResultsError(f"{where}: sweep has no size '{size}'")
+        old = [f"'{a}' was renamed to '{OLD_NAME_KEYS[a]}'" for a in sweep if a in OLD_NAME_KEYS]
+        if old:
+            raise ResultsError(f"{where}: sweep.{size}: sweep axis {', '.join(old)} (sweep "
+                               "axes are the run-config keys of README \"Configuration\")")
         need = STEP_AXES if exp["benchmark"] == "step" else FAMILY_KEYS[exp["benchmark"]]
         missing = [a for a in need if a not in sweep]
         if missing:
@@ -200,7 +225,7 @@ def entry_rows(doc, experiment):
     for entry in doc["benchmarks"]:
         if entry.get("run_type", "iteration") != "iteration":
             continue
-        run_name = entry.get("run_name", entry["name"])
+        run_name = canonical_run_name(entry.get("run_name", entry["name"]))
         family, params = parse_run_name(run_name)
         if family == "step":  # a name without the segment is a window from t = 0.35 s
             params.setdefault("flow_time", DEFAULT_FLOW_TIME)
@@ -210,7 +235,7 @@ def entry_rows(doc, experiment):
             if key in GB_FIELDS:
                 continue
             if isinstance(value, (int, float)) and not isinstance(value, bool):
-                col = COUNTER_RENAMES.get(key, key)
+                col = OLD_COUNTERS.get(key, key)
                 row[col + "_counter" if col in params else col] = value
         scale = TIME_UNITS.get(entry.get("time_unit", "ns"), 1e-9)
         row.update(repetition_index=entry.get("repetition_index", 0),
@@ -281,16 +306,17 @@ def medians(df):
 
 def derive_columns(med):
     """The convenience columns every reader of medians uses: t (seconds per
-    step), mem_mb (neighbour-structure MB) and N (particles simulated)."""
+    step), mem_mb (neighbour-structure MB) and N (particles simulated, as a
+    float: the counter n_particles, else the requested `particles`)."""
     if "s_per_step" in med:
         med["t"] = med["s_per_step"]
     elif "window_steps" in med:
         med["t"] = med["real_time_s"] / med["window_steps"]
     if "nl_bytes" in med:
         med["mem_mb"] = med["nl_bytes"] / 1e6
-    if "n" in med:
-        med["N"] = med["n_particles"] if "n_particles" in med else med["n"]
-        med["N"] = med["N"].fillna(med["n"]).astype(float)
+    if "particles" in med:
+        med["N"] = med["n_particles"] if "n_particles" in med else med["particles"]
+        med["N"] = med["N"].fillna(med["particles"]).astype(float)
     return med
 
 
@@ -302,7 +328,7 @@ def pick(med, **equal):
     return med
 
 
-def improvement(med, ref, var, on=("n",), x="N"):
+def improvement(med, ref, var, on=("particles",), x="N"):
     """The paper's improvement, 100 * (t_ref - t) / t_ref, of configurations
     `var` over `ref` (dicts of column values), matched on the columns `on`.
     Returns a DataFrame with columns `x`, `imp`, `t`, `t_ref`, sorted by `x`."""

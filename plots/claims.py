@@ -71,7 +71,7 @@ def _n_str(n):
 
 def _at(med, c):
     """The N to measure a claim at: its at_n when measured, else the largest."""
-    ns = sorted(med["n"].dropna().unique())
+    ns = sorted(med["particles"].dropna().unique())
     want = c.get("at_n")
     if want in ns or not want:
         n = want or ns[-1]
@@ -105,7 +105,7 @@ def _need_points(values, k, what):
 def _gain(med, n, ref, var):
     """Improvement of `var` over `ref` at N = n (two row look-ups: this runs on
     every bootstrap replicate, where a merge would dominate the report's time)."""
-    a, b = pick(med, **{**ref, "n": n}), pick(med, **{**var, "n": n})
+    a, b = pick(med, **{**ref, "particles": n}), pick(med, **{**var, "particles": n})
     if a.empty or b.empty:
         raise NotMeasured(f"no pair {ref} / {var} at N = {_n_str(n)}")
     t_ref, t = float(a["t"].iloc[0]), float(b["t"].iloc[0])
@@ -140,8 +140,8 @@ def _rel(other, mine):
 
 # ------------------------------------------------------------------- Table I
 def _share(med, c, lst, col):
-    n = med["n"].max()
-    row = _row(med, n=n, list=lst, ns=1, kgc=0)
+    n = med["particles"].max()
+    row = _row(med, particles=n, list=lst, list_steps=1, kgc=0)
     total = row["s_neighbour_list"] + row["s_force"] + row["s_update"]
     return 100 * row[col] / total, f"N = {_n_str(n)}, share of the three timed phases"
 
@@ -153,7 +153,7 @@ for _lst, _key in (("cll", "cll"), ("vlc", "vl")):
 
 # --------------------------------------------------------- Fig. 6-11 gridders
 def _times(med, n, col="t", **equal):
-    return {g: _one(med, col, n=n, gridder=g, **equal) for g in "ABCD"}
+    return {g: _one(med, col, particles=n, gridder=g, **equal) for g in "ABCD"}
 
 
 @claim("A_slower_3x")
@@ -191,7 +191,7 @@ for _g in "ABC":
 
 @claim("C_memory_20x")
 def c_memory_20x(med, c):
-    n = med["n"].max()
+    n = med["particles"].max()
     m = _times(med, n, "nl_bytes", reorder=0)
     return m["C"] / max(m["A"], m["B"], m["D"]), f"N = {_n_str(n)}"
 
@@ -199,7 +199,7 @@ def c_memory_20x(med, c):
 @claim("A_least_memory")
 def a_least_memory(med, c):
     margins = {}
-    for n in sorted(med["n"].unique()):
+    for n in sorted(med["particles"].unique()):
         m = _times(med, n, "nl_bytes", reorder=0)
         margins[n] = _rel(min(m["B"], m["C"], m["D"]), m["A"])
     return _margins(margins, "values of N where A needs least"), "margin: (min of B-D − A) / min of B-D"
@@ -208,7 +208,7 @@ def a_least_memory(med, c):
 def _memory_at(med, c, gridder):
     """MB at the claim's N, extrapolated linearly (bytes per particle) if not run."""
     n, note = _at(med, c)
-    row = _row(med, n=n, gridder=gridder, reorder=0)
+    row = _row(med, particles=n, gridder=gridder, reorder=0)
     per = row["nl_bytes"] / row["N"]
     if n == c["at_n"]:
         return row["nl_bytes"] / 1e6, f"{note}, {per:.1f} B/particle"
@@ -264,15 +264,15 @@ def a_2x_after_reorder(med, c):
 @claim("B_less_memory_than_D_reordered")
 def b_less_memory_than_d(med, c):
     n, note = _at(med, c)
-    return _one(med, "nl_bytes", n=n, gridder="B", reorder=1) / \
-        _one(med, "nl_bytes", n=n, gridder="D", reorder=1), note
+    return _one(med, "nl_bytes", particles=n, gridder="B", reorder=1) / \
+        _one(med, "nl_bytes", particles=n, gridder="D", reorder=1), note
 
 
 # ---------------------------------------------------------- Fig. 9, orderings
 @claim("sortx_beats_zorder")
 def sortx_beats_zorder(med, c):
     n, note = _at(med, c)
-    g = {o: _gain(med, n, {"order": o, "reorder": 0}, {"order": o, "reorder": 1})
+    g = {o: _gain(med, n, {"cell_order": o, "reorder": 0}, {"cell_order": o, "reorder": 1})
          for o in ("sort_x", "sort_xy", "sort_xyz")}
     return g["sort_x"] - max(g["sort_xy"], g["sort_xyz"]), \
         f"{note}; SortX's gain minus the larger Z-order gain", {f"gain_{k}": v for k, v in g.items()}
@@ -283,8 +283,8 @@ ORDER_NAMES = ["sort_x", "sort_xy", "sort_xyz", "hilbert"]
 
 @claim("zorder_index_100x")
 def zorder_index_100x(med, c):
-    n = med["n"].max()
-    per = {o: _one(med, "s_per_particle", n=n, order=o) for o in ORDER_NAMES}
+    n = med["particles"].max()
+    per = {o: _one(med, "s_per_particle", particles=n, cell_order=o) for o in ORDER_NAMES}
     return per["sort_xyz"] / per["sort_x"], f"N = {_n_str(n)}", \
         {f"{o}_over_sort_x": per[o] / per["sort_x"] for o in ORDER_NAMES[1:]}
 
@@ -320,14 +320,14 @@ def neighbour_search_nlnn(med, c):
 @claim("vl_memory_18x")
 def vl_memory_18x(med, c):
     n, note = _at(med, c)
-    return _one(med, "nl_bytes", n=n, list="vlc") / _one(med, "nl_bytes", n=n, list="cll"), note
+    return _one(med, "nl_bytes", particles=n, list="vlc") / _one(med, "nl_bytes", particles=n, list="cll"), note
 
 
 # ----------------------------------------------------- Fig. 14-15, n_s sweep
 def _ns_gains(med, c, lst):
     n, note = _at(med, c)
-    m = pick(med, n=n, kgc=0)
-    return _gain_series(m, {"list": "cll"}, {"list": lst}, "ns", "ns"), note
+    m = pick(med, particles=n, kgc=0)
+    return _gain_series(m, {"list": "cll"}, {"list": lst}, "list_steps", "list_steps"), note
 
 
 @claim("vl_beats_cll_3_to_15")
@@ -359,9 +359,9 @@ CLAIMS["vlc_best_gain_3pct"] = functools.partial(_best_gain, lst="vlc")
 def _vlx_below_vlc(med, c, col, x, what):
     """Margins, per value of `x` (n_s at one N, or N), of VL_X's `col` below VL_C's."""
     note = ""
-    if x == "ns":
+    if x == "list_steps":
         n, note = _at(med, c)
-        med = pick(med, n=n, kgc=0)
+        med = pick(med, particles=n, kgc=0)
     else:
         med = pick(med, kgc=0)
     vlx = pick(med, list="vlx").set_index(x)[col]
@@ -371,21 +371,21 @@ def _vlx_below_vlc(med, c, col, x, what):
         (f"{note}; " if note else "") + f"margin: (VL_C − VL_X) / VL_C of {col}"
 
 
-CLAIMS["vlx_faster_than_vlc"] = functools.partial(_vlx_below_vlc, col="t", x="ns",
+CLAIMS["vlx_faster_than_vlc"] = functools.partial(_vlx_below_vlc, col="t", x="list_steps",
                                                   what="values of n_s where VL_X is faster")
-CLAIMS["vlx_lighter_than_vlc"] = functools.partial(_vlx_below_vlc, col="nl_bytes", x="ns",
+CLAIMS["vlx_lighter_than_vlc"] = functools.partial(_vlx_below_vlc, col="nl_bytes", x="list_steps",
                                                    what="values of n_s where VL_X is lighter")
-CLAIMS["vlx_faster_than_vlc_all_N"] = functools.partial(_vlx_below_vlc, col="t", x="n",
+CLAIMS["vlx_faster_than_vlc_all_N"] = functools.partial(_vlx_below_vlc, col="t", x="particles",
                                                         what="values of N where VL_X is faster")
 
 
 def _memory_mb(med, c, lst, at_max_ns):
     n, note = _at(med, c)
-    rows = pick(med, n=n, list=lst, kgc=0)
+    rows = pick(med, particles=n, list=lst, kgc=0)
     if rows.empty:
         raise NotMeasured(f"no {lst} run at N = {_n_str(n)}")
-    row = rows.loc[rows["ns"].idxmax()] if at_max_ns else rows.iloc[0]
-    return row["nl_bytes"] / 1e6, note + (f", n_s = {row['ns']}" if at_max_ns else "")
+    row = rows.loc[rows["list_steps"].idxmax()] if at_max_ns else rows.iloc[0]
+    return row["nl_bytes"] / 1e6, note + (f", n_s = {row['list_steps']}" if at_max_ns else "")
 
 
 CLAIMS["cll_memory_31239"] = functools.partial(_memory_mb, lst="cll", at_max_ns=False)
@@ -396,21 +396,21 @@ CLAIMS["vlc_memory_high_ns"] = functools.partial(_memory_mb, lst="vlc", at_max_n
 @claim("vl_memory_30x_ns7")
 def vl_memory_30x_ns7(med, c):
     n, note = _at(med, c)
-    rows = pick(med, n=n, kgc=0)
+    rows = pick(med, particles=n, kgc=0)
     cll = _one(rows, "nl_bytes", list="cll")
-    return (_one(rows, "nl_bytes", list="vlx", ns=7) / cll, note,
-            {"vlc_over_cll": _one(rows, "nl_bytes", list="vlc", ns=7) / cll})
+    return (_one(rows, "nl_bytes", list="vlx", list_steps=7) / cll, note,
+            {"vlc_over_cll": _one(rows, "nl_bytes", list="vlc", list_steps=7) / cll})
 
 
 # ---------------------------------------------------- Fig. 16-17, n_s = 7 vs N
 def _gains_vs_n(med, lst, kgc=0):
-    return _gain_series(pick(med, ns=7, kgc=kgc), {"list": "cll"}, {"list": lst}, "n", "N")
+    return _gain_series(pick(med, list_steps=7, kgc=kgc), {"list": "cll"}, {"list": lst}, "particles", "N")
 
 
 @claim("vlx_gain_ns7_150k")
 def vlx_gain_ns7(med, c):
     n, note = _at(med, c)
-    return _gain(med, n, {"list": "cll", "ns": 7, "kgc": 0}, {"list": "vlx", "ns": 7, "kgc": 0}), note
+    return _gain(med, n, {"list": "cll", "list_steps": 7, "kgc": 0}, {"list": "vlx", "list_steps": 7, "kgc": 0}), note
 
 
 @claim("gain_grows_with_N")
@@ -689,10 +689,10 @@ class Evaluator:
         try:
             if fn is None:
                 raise NotMeasured("no measurement function for this claim in plots/claims.py")
-            if boot is None or boot.point.empty or "n" not in boot.point:
+            if boot is None or boot.point.empty or "particles" not in boot.point:
                 raise NotMeasured("no results")
-            if boot.point["n"].max() < min_n:
-                raise NotMeasured(f"largest N measured is {_n_str(boot.point['n'].max())}; "
+            if boot.point["particles"].max() < min_n:
+                raise NotMeasured(f"largest N measured is {_n_str(boot.point['particles'].max())}; "
                                   f"the claim needs N ≥ {_n_str(min_n)}")
             boot.cache_tables()
             res = measure(fn, c, boot)

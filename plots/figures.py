@@ -33,7 +33,7 @@ GRIDDERS = {"A": "A sliding vector", "B": "B preconditioned vector",
 LISTS = {"cll": "CLL", "vlc": "VL$_C$", "vlx": "VL$_X$"}
 ORDERS = {"sort_x": "SortX", "sort_xy": "SortXY (Z-order)",
           "sort_xyz": "SortXYZ (Z-order)", "hilbert": "Hilbert (ours)"}
-SERIAL = {"order": "sort_x", "kgc": 0, "threads": 1}  # the paper's serial SortX runs
+SERIAL = {"cell_order": "sort_x", "kgc": 0, "threads": 1}  # the paper's serial SortX runs
 SORTED_B = {**SERIAL, "gridder": "B", "reorder": 1}   # its choice from Section 3.3 on
 N_LABEL = "N (particles)"
 NS_LABEL = "$n_s$ (steps a Verlet list is kept)"
@@ -115,7 +115,7 @@ def _curves(med, by, y, labels, x="N"):
     return out
 
 
-def _gain_curves(med, labels, ref, var, x="N", on=("n",)):
+def _gain_curves(med, labels, ref, var, x="N", on=("particles",)):
     """Improvement curves, one per key of `labels`: runs var(key) against ref(key)."""
     out = []
     for key, label in labels.items():
@@ -246,8 +246,8 @@ def fig08(data, out):
 def fig09(data, out):
     """Fig. 9: improvement from reordering per cell ordering vs N, gridder B."""
     return _gain_vs_n(data, out, "fig09", "Fig. 9: improvement from reordering per ordering (gridder B)",
-                      ORDERS, lambda o: {"order": o, "reorder": 0},
-                      lambda o: {"order": o, "reorder": 1}, list="cll", gridder="B", kgc=0, threads=1)
+                      ORDERS, lambda o: {"cell_order": o, "reorder": 0},
+                      lambda o: {"cell_order": o, "reorder": 1}, list="cll", gridder="B", kgc=0, threads=1)
 
 
 def fig10(data, out):
@@ -265,20 +265,20 @@ def fig11(data, out):
 def fig12(data, out):
     """Fig. 12: runtime of CLL and VL (n_s = 1) vs N."""
     return _metric_vs_n(data, out, "fig12", "Fig. 12: runtime of CLL and VL ($n_s$ = 1)",
-                        "t", "list", {"cll": "CLL", "vlc": "VL"}, **SORTED_B, ns=1)
+                        "t", "list", {"cll": "CLL", "vlc": "VL"}, **SORTED_B, list_steps=1)
 
 
 def fig13(data, out):
     """Fig. 13: memory of CLL and VL (n_s = 1) vs N."""
     return _metric_vs_n(data, out, "fig13", "Fig. 13: memory of CLL and VL ($n_s$ = 1)",
-                        "mem_mb", "list", {"cll": "CLL", "vlc": "VL"}, **SORTED_B, ns=1)
+                        "mem_mb", "list", {"cll": "CLL", "vlc": "VL"}, **SORTED_B, list_steps=1)
 
 
 def _fixed_n(med):
     """Fig. 14/15 are at one N: 31 239 when measured, else the largest.
     Returns the Med at that N and the particles actually simulated."""
-    n = 31239 if (med.point["n"] == 31239).any() else med.point["n"].max()
-    rows = med.where(n=n)
+    n = 31239 if (med.point["particles"] == 31239).any() else med.point["particles"].max()
+    rows = med.where(particles=n)
     return rows, rows.point["N"].median()
 
 
@@ -287,7 +287,7 @@ def fig14(data, out):
     med, n = _fixed_n(_med(data, **SORTED_B))
     curves = med.curves(lambda m: _gain_curves(m, {"vlc": LISTS["vlc"], "vlx": LISTS["vlx"]},
                                                lambda _: {"list": "cll"}, lambda lst: {"list": lst},
-                                               x="ns", on=("n", "ns")))
+                                               x="list_steps", on=("particles", "list_steps")))
     _draw(out, "fig14", f"Fig. 14: improvement over CLL vs $n_s$, N = {_fmt_n(n)}", NS_LABEL,
           [("improvement in time (%)", curves, True)])
     best = [f"{_plain(lab)} {ys.max():.2g} % [{lo[ys.argmax()]:.2g}, {hi[ys.argmax()]:.2g}] at "
@@ -299,7 +299,7 @@ def fig14(data, out):
 def fig15(data, out):
     """Fig. 15: memory of CLL, VL_X and VL_C vs n_s."""
     med, n = _fixed_n(_med(data, **SORTED_B))
-    curves = med.curves(lambda m: _curves(m, "list", "mem_mb", LISTS, x="ns"))
+    curves = med.curves(lambda m: _curves(m, "list", "mem_mb", LISTS, x="list_steps"))
     _draw(out, "fig15", f"Fig. 15: memory vs $n_s$, N = {_fmt_n(n)}", NS_LABEL,
           [("neighbour-structure memory (MB)", curves, False)])
     ns, text = _at_end(curves, " MB", best="min")
@@ -310,12 +310,12 @@ def fig16(data, out):
     """Fig. 16: improvement of VL_C and VL_X over CLL at n_s = 7 vs N."""
     return _gain_vs_n(data, out, "fig16", "Fig. 16: improvement over CLL at $n_s$ = 7",
                       {"vlc": LISTS["vlc"], "vlx": LISTS["vlx"]}, lambda _: {"list": "cll"},
-                      lambda lst: {"list": lst}, smooth=True, **SORTED_B, ns=7)
+                      lambda lst: {"list": lst}, smooth=True, **SORTED_B, list_steps=7)
 
 
 def fig17(data, out):
     """Fig. 17: improvement of VL_X over CLL, with and without KGC, n_s = 7 vs N."""
-    med = _med(data, order="sort_x", threads=1, gridder="B", reorder=1, ns=7)  # both kgc
+    med = _med(data, cell_order="sort_x", threads=1, gridder="B", reorder=1, list_steps=7)  # both kgc
     curves = med.curves(lambda m: _gain_curves(m, {0: "VL$_X$", 1: "VL$_X$ with KGC"},
                                                lambda k: {"list": "cll", "kgc": k},
                                                lambda k: {"list": "vlx", "kgc": k}))
@@ -329,7 +329,7 @@ def cellindex(data, out):
     """Section 3.2: cost of the cell index per particle for each ordering ('~100x')."""
     med = _med(data, family="cellindex")
     curves = med.curves(lambda m: _curves(m.assign(ns_per=1e9 * m["s_per_particle"]),
-                                          "order", "ns_per", ORDERS))
+                                          "cell_order", "ns_per", ORDERS))
     _draw(out, "cellindex", "Cost of the cell index per particle (Section 3.2)", N_LABEL,
           [("ns per particle", curves, False)])
     n, text = _at_end(curves, " ns", best="min")
@@ -346,9 +346,9 @@ def _thread_curves(med):
 def _speedups(med):
     speed = []
     for lst in LISTS:
-        one = pick(med, list=lst, threads=1).set_index("n")
+        one = pick(med, list=lst, threads=1).set_index("particles")
         for th in sorted(t for t in med["threads"].unique() if t > 1):
-            many = pick(med, list=lst, threads=th).set_index("n")
+            many = pick(med, list=lst, threads=th).set_index("particles")
             common = one.index.intersection(many.index)
             if len(common):
                 speed.append((f"{LISTS[lst]}, {th} threads", one.loc[common, "N"].to_numpy(float),
@@ -382,12 +382,12 @@ def table1(data, exp):
 
     Returns (markdown, sentence). Shares are of the sum of the three timed
     phases; the paper values come from the experiment's claims."""
-    med = _med(data, ns=1, kgc=0).point
-    n = med["n"].max()
+    med = _med(data, list_steps=1, kgc=0).point
+    n = med["particles"].max()
     paper = {c["id"]: c["paper_value"] for c in exp.get("claims", [])}
     cols, shares = [], {}
     for lst, key in (("cll", "cll"), ("vlc", "vl")):
-        row = pick(med, n=n, list=lst)
+        row = pick(med, particles=n, list=lst)
         if row.empty:
             raise NoData(f"no {lst} run at N = {n}")
         row = row.iloc[0]
@@ -399,9 +399,9 @@ def table1(data, exp):
     for name, _, ph in PHASES:
         lines.append(f"| {name} | {paper.get(f'table1_cll_{ph}', '?')} % | {shares['cll'][ph]:.1f} % "
                      f"| {paper.get(f'table1_vl_{ph}', '?')} % | {shares['vl'][ph]:.1f} % |")
-    reps = int(pick(med, n=n)["reps"].min())
+    reps = int(pick(med, particles=n)["reps"].min())
     md = "\n".join(lines) + (
-        f"\n\nMeasured at N = {_fmt_n(pick(med, n=n)['N'].iloc[0])} (gridder B, SortX, reordered), "
+        f"\n\nMeasured at N = {_fmt_n(pick(med, particles=n)['N'].iloc[0])} (gridder B, SortX, reordered), "
         f"median of {reps} repetition(s); VL = VL_C with n_s = 1. Shares are of the sum of the "
         f"three timed phases, which covers {cols[0]} (CLL) and {cols[1]} (VL) of the wall time per step. "
         f"The intervals of these shares are in the claims table (`table1_*`).\n")

@@ -24,9 +24,9 @@ std::string all_errors(const std::string& text) {
 const char* kValidStep = R"({
   "id": "x", "benchmark": "step", "uses": null, "metric": "s_per_step",
   "sweep": {
-    "tiny": {"n": [1500], "gridder": ["A"], "order": ["sort_x"], "reorder": [0], "list": ["cll"], "ns": [1], "kgc": [0], "threads": [1]},
-    "default": {"n": [1500], "gridder": ["A"], "order": ["sort_x"], "reorder": [0], "list": ["cll"], "ns": [1], "kgc": [0], "threads": [1]},
-    "full": {"n": [1500], "gridder": ["A"], "order": ["sort_x"], "reorder": [0], "list": ["cll"], "ns": [1], "kgc": [0], "threads": [1], "flow_time": [0.35]}
+    "tiny": {"particles": [1500], "gridder": ["A"], "cell_order": ["sort_x"], "reorder": [0], "list": ["cll"], "list_steps": [1], "kgc": [0], "threads": [1]},
+    "default": {"particles": [1500], "gridder": ["A"], "cell_order": ["sort_x"], "reorder": [0], "list": ["cll"], "list_steps": [1], "kgc": [0], "threads": [1]},
+    "full": {"particles": [1500], "gridder": ["A"], "cell_order": ["sort_x"], "reorder": [0], "list": ["cll"], "list_steps": [1], "kgc": [0], "threads": [1], "flow_time": [0.35]}
   },
   "window_steps": {"tiny": 3, "default": 10, "full": 20},
   "protocol": {"tiny": {"min_rounds": 1, "max_rounds": 3}, "full": {"budget_s": 60, "target_halfwidth_pct": 2}},
@@ -84,9 +84,27 @@ TEST(ExperimentSchema, ShippedExperimentsAreValid) {
 }
 
 TEST(ExperimentSchema, MisspelledSweepAxisIsNamedWithItsPlace) {
-  const std::string e = all_errors(with(kValidStep, R"("tiny": {"n": [1500], "gridder")", R"("tiny": {"n": [1500], "gridderr")"));
-  EXPECT_HAS(e, "e.json:4:27: sweep.tiny: unknown sweep axis 'gridderr' for benchmark 'step'; allowed: n, gridder,");
+  const std::string e = all_errors(with(kValidStep, R"("tiny": {"particles": [1500], "gridder")", R"("tiny": {"particles": [1500], "gridderr")"));
+  EXPECT_HAS(e, "e.json:4:35: sweep.tiny: unknown sweep axis 'gridderr' for benchmark 'step'; allowed: particles, gridder, cell_order,");
   EXPECT_HAS(e, "sweep.tiny: missing sweep axis 'gridder'");
+}
+
+TEST(ExperimentSchema, OldAxisNamesSayWhatTheyWereRenamedTo) {
+  // The vocabulary before the sweep axes became the run-config keys.
+  std::string old = with(kValidStep, R"("tiny": {"particles": [1500])", R"("tiny": {"n": [1500])");
+  old = with(old, R"("cell_order": ["sort_x"], "reorder": [0], "list": ["cll"], "list_steps": [1], "kgc": [0], "threads": [1]},)",
+             R"("order": ["sort_x"], "reorder": [0], "list": ["cll"], "ns": [1], "kgc": [0], "threads": [1]},)");
+  const std::string e = all_errors(old);
+  EXPECT_HAS(e, "e.json:4:14: sweep.tiny: sweep axis 'n' was renamed to 'particles'");
+  EXPECT_HAS(e, "e.json:4:45: sweep.tiny: sweep axis 'order' was renamed to 'cell_order'");
+  EXPECT_HAS(e, "sweep.tiny: sweep axis 'ns' was renamed to 'list_steps'");
+  // said once, as a rename: neither unknown nor missing
+  EXPECT_EQ(e.find("unknown sweep axis"), std::string::npos) << e;
+  EXPECT_EQ(e.find("missing sweep axis"), std::string::npos) << e;
+}
+
+TEST(ExperimentSchema, BenchmarkOnlyAxesAreTheOnesThatAreNotConfigKeys) {
+  EXPECT_EQ(benchmark_only_axes(), std::vector<std::string>{"flow_time"});
 }
 
 TEST(ExperimentSchema, UnknownTopLevelKey) {
@@ -99,12 +117,12 @@ TEST(ExperimentSchema, DuplicateKeyInAnExperiment) {
 }
 
 TEST(ExperimentSchema, WrongTypesAndValues) {
-  EXPECT_HAS(all_errors(with(kValidStep, R"("gridder": ["A"], "order")", R"("gridder": ["E"], "order")")), "sweep.tiny.gridder: config key 'gridder': invalid value \"E\"; allowed: A, B, C, D");
+  EXPECT_HAS(all_errors(with(kValidStep, R"("gridder": ["A"], "cell_order")", R"("gridder": ["E"], "cell_order")")), "sweep.tiny.gridder: config key 'gridder': invalid value \"E\"; allowed: A, B, C, D");
   EXPECT_HAS(all_errors(with(kValidStep, R"("threads": [1]},)", R"("threads": 1},)")), "sweep.tiny.threads: is 1; expected a non-empty array of values");
   EXPECT_HAS(all_errors(with(kValidStep, R"("flow_time": [0.35])", R"("flow_time": [0])")), "sweep.full.flow_time: value 0 is not allowed; expected a number > 0");
   EXPECT_HAS(all_errors(with(kValidStep, R"("window_steps": {"tiny": 3)", R"("window_steps": {"tiny": 0)")), "window_steps.tiny: is 0; expected an integer >= 1");
   EXPECT_HAS(all_errors(with(kValidStep, R"("benchmark": "step")", R"("benchmark": "steps")")), "benchmark: is \"steps\"; expected one of step, cellindex, search");
-  EXPECT_HAS(all_errors(with(kValidStep, R"("tiny": {"n")", R"("small": {"n")")), "sweep: unknown size 'small'; allowed: tiny, default, full");
+  EXPECT_HAS(all_errors(with(kValidStep, R"("tiny": {"particles")", R"("small": {"particles")")), "sweep: unknown size 'small'; allowed: tiny, default, full");
 }
 
 TEST(ExperimentSchema, ProtocolAndClaims) {

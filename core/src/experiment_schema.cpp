@@ -14,36 +14,46 @@ namespace {
 
 const std::vector<std::string> kSizes = {"tiny", "default", "full"};
 
-/// A sweep axis: the run-config key that checks its values (empty: `check`
-/// does), and the benchmark families it belongs to, with those requiring it.
+/// A sweep axis and the benchmark families it belongs to, with those
+/// requiring it. An axis is a run-config key (README "Configuration") whose
+/// values config_from_json checks, unless it has its own `check`: then it is a
+/// benchmark-only axis (benchmark_only_axes()), which the bench handles itself.
 struct Axis {
   const char* name;
-  const char* config_key;
   std::vector<std::string> families, required_in;
-  std::function<std::string(const json&)> check;  // "" when the value is fine
+  std::function<std::string(const json&)> check;  // benchmark-only axes: "" when the value is fine
 };
 
 std::string positive_number(const json& v) {
   return v.is_number() && std::isfinite(v.get<double>()) && v.get<double>() > 0 ? "" : "a number > 0";
 }
 
+// Register a new sweep axis here (and, for its place in benchmark names, in the
+// family's axis list in benchmarks/ and FAMILY_KEYS of harness/results.py).
 const std::vector<Axis>& axes() {
   static const std::vector<Axis> table = {
-      {"n", "particles", {"step", "cellindex", "search"}, {"step", "cellindex", "search"}, {}},
-      {"gridder", "gridder", {"step", "search"}, {"step", "search"}, {}},
-      {"order", "cell_order", {"step", "cellindex", "search"}, {"step", "cellindex", "search"}, {}},
-      {"reorder", "reorder", {"step", "search"}, {"step", "search"}, {}},
-      {"list", "list", {"step"}, {"step"}, {}},
-      {"ns", "list_steps", {"step"}, {"step"}, {}},
-      {"kgc", "kgc", {"step"}, {"step"}, {}},
-      {"threads", "threads", {"step", "search"}, {"step", "search"}, {}},
-      {"lattice", "lattice", {"step"}, {}, {}},
-      {"h_coefficient", "h_coefficient", {"step"}, {}, {}},
-      // simulated time of the developed flow the window starts from (s)
-      {"flow_time", "", {"step"}, {}, positive_number},
+      {"particles", {"step", "cellindex", "search"}, {"step", "cellindex", "search"}, {}},
+      {"gridder", {"step", "search"}, {"step", "search"}, {}},
+      {"cell_order", {"step", "cellindex", "search"}, {"step", "cellindex", "search"}, {}},
+      {"reorder", {"step", "search"}, {"step", "search"}, {}},
+      {"list", {"step"}, {"step"}, {}},
+      {"list_steps", {"step"}, {"step"}, {}},
+      {"kgc", {"step"}, {"step"}, {}},
+      {"threads", {"step", "search"}, {"step", "search"}, {}},
+      {"lattice", {"step"}, {}, {}},
+      {"h_coefficient", {"step"}, {}, {}},
+      // simulated time of the developed flow the window starts from (s): picks
+      // the snapshot, not a run setting
+      {"flow_time", {"step"}, {}, positive_number},
   };
   return table;
 }
+
+/// Sweep axes of the vocabulary before the run-config keys were used
+/// everywhere, and what each is called now: named in the error, so that an old
+/// experiment file says how to fix it.
+const std::vector<std::pair<std::string, std::string>> kRenamedAxes = {
+    {"n", "particles"}, {"order", "cell_order"}, {"ns", "list_steps"}, {"hcoef", "h_coefficient"}};
 
 /// Fields of `protocol` (the measurement protocol of docs/MEASUREMENT.md).
 struct ProtocolField {
@@ -107,6 +117,12 @@ class Checker {
       const auto it = std::find_if(axes().begin(), axes().end(), [&](const Axis& a) { return axis == a.name; });
       const bool in_family =
           it != axes().end() && std::find(it->families.begin(), it->families.end(), family) != it->families.end();
+      const auto renamed = std::find_if(kRenamedAxes.begin(), kRenamedAxes.end(), [&](const auto& r) { return axis == r.first; });
+      if (renamed != kRenamedAxes.end()) {
+        error(aptr, key, "sweep axis '" + axis + "' was renamed to '" + renamed->second +
+                             "' (sweep axes are the run-config keys of README \"Configuration\")");
+        continue;
+      }
       if (!in_family) {
         std::vector<std::string> allowed;
         for (const auto& a : axes())
@@ -122,7 +138,7 @@ class Checker {
           if (!problem.empty()) problem = "value " + value.dump() + " is not allowed; expected " + problem;
         } else {
           try {
-            config_from_json(json{{it->config_key, value}});
+            config_from_json(json{{it->name, value}});
           } catch (const ConfigError& e) {
             problem = e.what();  // names the config key and its allowed values
           }
@@ -130,9 +146,14 @@ class Checker {
         if (!problem.empty()) error(aptr, akey, problem);
       }
     }
-    for (const auto& a : axes())
-      if (std::find(a.required_in.begin(), a.required_in.end(), family) != a.required_in.end() && !sweep.contains(a.name))
+    for (const auto& a : axes()) {
+      const bool old_name_given = std::any_of(kRenamedAxes.begin(), kRenamedAxes.end(), [&](const auto& r) {
+        return r.second == a.name && sweep.contains(r.first);  // already reported as renamed
+      });
+      if (std::find(a.required_in.begin(), a.required_in.end(), family) != a.required_in.end() &&
+          !sweep.contains(a.name) && !old_name_given)
         error(ptr, key, std::string("missing sweep axis '") + a.name + "' (required for benchmark '" + family + "')");
+    }
   }
 
   void protocol_fields(const std::string& ptr, const std::string& key, const json& v) {
@@ -241,6 +262,16 @@ class Checker {
 }  // namespace
 
 std::vector<std::string> validate_experiment(const ParsedJson& doc) { return Checker(doc).run(); }
+
+const std::vector<std::string>& benchmark_only_axes() {
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> v;
+    for (const auto& a : axes())
+      if (a.check) v.emplace_back(a.name);
+    return v;
+  }();
+  return names;
+}
 
 json load_experiment(const std::string& path) {
   ParsedJson doc = read_json_strict(path);

@@ -37,20 +37,20 @@ GB_LINE = "-" * 100
 def step_model(p):
     """Seconds per step and phase shares of one `step` config (made-up but
     paper-shaped: A quadratic unsorted, reordering helps, VL best near n_s=7)."""
-    n = p["n"]
+    n = p["particles"]
     t = 1.0e-6 * n * (1 + 0.1 * math.log(n / 1000))
     if p["reorder"] == 0:
         t *= {"D": 1.15}.get(p["gridder"], 1.3)
         t *= {"B": 1.05, "C": 1.08}.get(p["gridder"], 1.0)
-    t *= {"sort_x": 1.0, "sort_xy": 1.03, "sort_xyz": 1.04, "hilbert": 1.02}[p["order"]]
+    t *= {"sort_x": 1.0, "sort_xy": 1.03, "sort_xyz": 1.04, "hilbert": 1.02}[p["cell_order"]]
     if p["gridder"] == "A":
         t += 2e-11 * n * n if p["reorder"] == 0 else 1.0e-6 * n
     share_list = 0.03
     if p["list"] != "cll":
-        gain = 0.05 - 0.04 * math.log(p["ns"] / 7) ** 2 + 0.01 * math.log10(n / 31239)
+        gain = 0.05 - 0.04 * math.log(p["list_steps"] / 7) ** 2 + 0.01 * math.log10(n / 31239)
         gain -= 0.01 if p["list"] == "vlc" else 0.0
         t *= 1 - gain * (2 if p["kgc"] else 1)
-        share_list = 0.2 if p["ns"] == 1 else 0.04
+        share_list = 0.2 if p["list_steps"] == 1 else 0.04
     if p["kgc"]:
         t *= 1.8
     if p["threads"] > 1:
@@ -60,30 +60,30 @@ def step_model(p):
 
 def memory_model(p):
     """Bytes of the neighbour structures (nl_bytes)."""
-    n, cells = p["n"], p["n"] * 4
+    n, cells = p["particles"], p["particles"] * 4
     grid = {"A": 4 * (n + cells), "B": 4 * (2 * n + cells), "C": 4 * cells * 41,
             "D": 4 * (2 * n + cells)}[p["gridder"]]
     if p["reorder"]:
         grid += n * (2 if p["gridder"] != "D" else 6)
     if p["list"] == "cll":
         return grid
-    skin = 0.04 * p["ns"] * (1.2 if p["list"] == "vlc" else 1.0)
+    skin = 0.04 * p["list_steps"] * (1.2 if p["list"] == "vlc" else 1.0)
     return grid + int(4 * 55 * n * (1 + skin) ** 3)
 
 
 def counters(p, t, share_list, steps):
     """The user counters of CONTRACTS.md for one `step` repetition."""
     t *= {0.2: 0.97, 0.5: 1.04}.get(p.get("flow_time", 0.35), 1.0)  # the flow spreads
-    rebuilds = steps if p["list"] == "cll" else max(1, math.ceil(steps / p["ns"]))
-    return {"n": p["n"], "n_fluid": int(p["n"] * 0.4), "window_steps": steps,
+    rebuilds = steps if p["list"] == "cll" else max(1, math.ceil(steps / p["list_steps"]))
+    return {"n_particles": p["particles"], "n_fluid": int(p["particles"] * 0.4), "window_steps": steps,
             "s_per_step": t, "s_neighbour_list": t * share_list,
             "s_force": t * (0.98 - share_list), "s_update": t * 0.02,
-            "nl_bytes": memory_model(p), "peak_rss_bytes": 50_000_000 + 400 * p["n"],
+            "nl_bytes": memory_model(p), "peak_rss_bytes": 50_000_000 + 400 * p["particles"],
             "rebuilds": rebuilds, "mean_steps_per_list": steps / rebuilds,
             "max_steps_per_list": math.ceil(steps / rebuilds),
             "candidates_per_particle": 120.0, "interactions_per_particle": 55.0,
-            "pairs_per_s": 27.5 * p["n"] / t, "vl_misses": 0,
-            "s_per_particle_step": t / p["n"], "snapshot_time": p.get("flow_time", 0.35) + 1e-4}
+            "pairs_per_s": 27.5 * p["particles"] / t, "vl_misses": 0,
+            "s_per_particle_step": t / p["particles"], "snapshot_time": p.get("flow_time", 0.35) + 1e-4}
 
 
 def parse_args(argv):
@@ -150,11 +150,11 @@ def main(argv=None):
             ctr = counters(point, t * noise, share, steps)
             real = ctr["s_per_step"] * steps
         else:  # cellindex: passes over n particles, >= 2e6 keys in all
-            per = {"sort_x": 1e-9, "sort_xy": 3e-9, "sort_xyz": 4e-9, "hilbert": 9e-9}[point["order"]]
-            passes = max(1, 2_000_000 // point["n"])
-            real = per * point["n"] * passes * noise
-            ctr = {"n": point["n"], "s_per_particle": per * noise,
-                   "cell_keys": 4 * point["n"], "cells": 4 * point["n"]}
+            per = {"sort_x": 1e-9, "sort_xy": 3e-9, "sort_xyz": 4e-9, "hilbert": 9e-9}[point["cell_order"]]
+            passes = max(1, 2_000_000 // point["particles"])
+            real = per * point["particles"] * passes * noise
+            ctr = {"n_particles": point["particles"], "s_per_particle": per * noise,
+                   "cell_keys": 4 * point["particles"], "cells": 4 * point["particles"]}
         entry = {"name": name, "family_index": 0, "per_family_instance_index": index,
                  "run_name": name, "run_type": "iteration", "repetitions": reps,
                  "repetition_index": rep, "threads": 1, "iterations": 1,

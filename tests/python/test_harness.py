@@ -30,7 +30,8 @@ from plots import figures as F  # noqa: E402
 from plots import report  # noqa: E402
 
 FAKE = REPO / "tests" / "python" / "fake_bench.py"
-CONTRACT_NAME = "step/n:31239/gridder:B/order:sort_x/reorder:1/list:cll/ns:1/kgc:0/threads:1"
+CONTRACT_NAME = ("step/particles:31239/gridder:B/cell_order:sort_x/reorder:1/list:cll/list_steps:1/"
+                 "kgc:0/threads:1")
 
 
 # run.py sees a clean checkout at this revision unless a test says otherwise
@@ -63,29 +64,54 @@ class TestNames(unittest.TestCase):
     def test_contract_name_round_trip(self):
         family, p = R.parse_run_name(CONTRACT_NAME)
         self.assertEqual(family, "step")
-        self.assertEqual(p, {"n": 31239, "gridder": "B", "order": "sort_x", "reorder": 1,
-                             "list": "cll", "ns": 1, "kgc": 0, "threads": 1})
-        self.assertIsInstance(p["n"], int)
+        self.assertEqual(p, {"particles": 31239, "gridder": "B", "cell_order": "sort_x", "reorder": 1,
+                             "list": "cll", "list_steps": 1, "kgc": 0, "threads": 1})
+        self.assertIsInstance(p["particles"], int)
         shuffled = dict(reversed(list(p.items())))
         self.assertEqual(R.format_run_name("step", shuffled), CONTRACT_NAME)
 
     def test_optional_axes_and_gb_segments(self):
-        _, p = R.parse_run_name(CONTRACT_NAME + "/lattice:cubic/hcoef:0.866025/iterations:1/real_time")
+        _, p = R.parse_run_name(CONTRACT_NAME + "/lattice:cubic/h_coefficient:0.866025/iterations:1/real_time")
         self.assertEqual(p["lattice"], "cubic")
         self.assertAlmostEqual(p["h_coefficient"], 0.866025)
         self.assertNotIn("iterations", p)
-        self.assertEqual(R.format_run_name("step", {**p}), CONTRACT_NAME + "/lattice:cubic/hcoef:0.866025")
+        self.assertEqual(R.format_run_name("step", {**p}), CONTRACT_NAME + "/lattice:cubic/h_coefficient:0.866025")
 
     def test_other_families(self):
-        self.assertEqual(R.format_run_name("cellindex", {"n": 60000, "order": "sort_xyz"}),
-                         "cellindex/order:sort_xyz/n:60000")
-        self.assertEqual(R.parse_run_name("cellindex/order:hilbert/n:1500"),
-                         ("cellindex", {"order": "hilbert", "n": 1500}))
+        self.assertEqual(R.format_run_name("cellindex", {"particles": 60000, "cell_order": "sort_xyz"}),
+                         "cellindex/cell_order:sort_xyz/particles:60000")
+        self.assertEqual(R.parse_run_name("cellindex/cell_order:hilbert/particles:1500"),
+                         ("cellindex", {"cell_order": "hilbert", "particles": 1500}))
+
+    def test_old_vocabulary_reads_as_the_new(self):
+        """Names written before the run-config keys were used everywhere (the
+        stored results, an older `make compare` base) parse to the same point."""
+        old = "step/n:31239/gridder:B/order:sort_x/reorder:1/list:cll/ns:1/kgc:0/threads:1/hcoef:1.2"
+        self.assertEqual(R.parse_run_name(old), R.parse_run_name(CONTRACT_NAME + "/h_coefficient:1.2"))
+        self.assertEqual(R.canonical_run_name(old), CONTRACT_NAME + "/h_coefficient:1.2")
+        self.assertEqual(R.canonical_run_name(CONTRACT_NAME), CONTRACT_NAME)
+        self.assertEqual(R.canonical_run_name("cellindex/order:hilbert/n:1500"),
+                         "cellindex/cell_order:hilbert/particles:1500")
+        self.assertEqual(R.canonical_run_name("step/n:1500/real_time"), "step/particles:1500/real_time")
+        doc = {"benchmarks": [{"name": old, "run_name": old, "run_type": "iteration",
+                               "n": 31246, "s_per_step": 1e-3, "time_unit": "ms", "real_time": 1}]}
+        row, = R.entry_rows(doc, "fig06")
+        self.assertEqual((row["particles"], row["n_particles"], row["cell_order"], row["list_steps"]),
+                         (31239, 31246, "sort_x", 1))
+        self.assertEqual(row["run_name"], CONTRACT_NAME + "/h_coefficient:1.2")
+        self.assertNotIn("n", row)
+
+    def test_old_sweep_axis_is_an_error_naming_the_new_one(self):
+        exp = json.loads((REPO / "experiments" / "fig06.json").read_text(encoding="utf-8"))
+        exp["sweep"]["tiny"]["n"] = exp["sweep"]["tiny"].pop("particles")
+        with self.assertRaisesRegex(R.ResultsError, r"fig06.json: sweep.tiny: sweep axis 'n' was "
+                                                    r"renamed to 'particles'"):
+            R.validate_experiment(exp, "experiments/fig06.json")
 
     def test_point_key_matches_numbers_of_any_spelling(self):
-        axes = ["n", "h_coefficient"]
-        self.assertEqual(R.point_key({"n": 1500, "h_coefficient": 1}, axes),
-                         R.point_key({"n": 1500.0, "h_coefficient": 1.0}, axes))
+        axes = ["particles", "h_coefficient"]
+        self.assertEqual(R.point_key({"particles": 1500, "h_coefficient": 1}, axes),
+                         R.point_key({"particles": 1500.0, "h_coefficient": 1.0}, axes))
 
 
 class TestExperiments(unittest.TestCase):
@@ -141,7 +167,7 @@ class TestExperiments(unittest.TestCase):
                 ok, message = P.window_ok(exp, size)
                 self.assertTrue(ok, message)
         self.assertGreaterEqual(self.exps["fig14"]["window_steps"]["full"],
-                                3 * max(self.exps["fig14"]["sweep"]["full"]["ns"]))
+                                3 * max(self.exps["fig14"]["sweep"]["full"]["list_steps"]))
 
     def test_improvement_experiments_sweep_three_flow_states(self):
         for exp_id in ("fig12", "fig14", "fig16", "fig17"):
@@ -150,7 +176,7 @@ class TestExperiments(unittest.TestCase):
                                  f"{exp_id} {size}")
 
     def test_full_keeps_the_papers_n(self):
-        full = {i: set(e["sweep"]["full"].get("n", [])) for i, e in self.exps.items() if not e.get("uses")}
+        full = {i: set(e["sweep"]["full"].get("particles", [])) for i, e in self.exps.items() if not e.get("uses")}
         self.assertTrue({8000, 300000} <= full["fig16"] and 150000 in full["fig16"])
         self.assertIn(31239, full["fig14"])
         self.assertIn(1000000, full["fig12"])
@@ -173,7 +199,7 @@ class TestRunAndLoad(TempDirCase):
         self.assertEqual(len(df), 2 * (4 + 6))  # tiny: 2 rounds of 1 repetition per configuration
         self.assertEqual(sorted(df["round"].unique()), [0, 1])
         self.assertEqual(set(df["gridder"]), {"A", "B", "C", "D"})
-        self.assertTrue(str(df["n"].dtype).startswith("int"), df["n"].dtype)
+        self.assertTrue(str(df["particles"].dtype).startswith("int"), df["particles"].dtype)
         for col in ("s_per_step", "nl_bytes", "n_particles", "s_force", "real_time_s"):
             self.assertIn(col, df)
         mtime = (out_dir / "fig06.json").stat().st_mtime_ns
@@ -199,7 +225,7 @@ class TestRunAndLoad(TempDirCase):
         self.assertIn("fig06: 8 configurations", log)  # 4 gridders x N in {8000, 16000}
         path = out_dir / "fig06.json"
         first = json.loads(path.read_text(encoding="utf-8"))["benchmarks"]
-        self.assertEqual({R.parse_run_name(b["run_name"])[1]["n"] for b in first}, {8000, 16000})
+        self.assertEqual({R.parse_run_name(b["run_name"])[1]["particles"] for b in first}, {8000, 16000})
         self.assertEqual(json.loads((out_dir / "machine.json").read_text())["max_n"], 16000)
         _, log2 = fake_run(self.tmp, "default", "--only", "fig06", "--max-n", "16000")
         self.assertIn("fig06: complete, skipped", log2)
@@ -210,7 +236,7 @@ class TestRunAndLoad(TempDirCase):
         self.assertIn("running only N = 31239", log3)
         merged_doc = json.loads(path.read_text(encoding="utf-8"))
         merged = merged_doc["benchmarks"]
-        kept = [b for b in merged if R.parse_run_name(b["run_name"])[1]["n"] <= 16000]
+        kept = [b for b in merged if R.parse_run_name(b["run_name"])[1]["particles"] <= 16000]
         self.assertEqual(kept, first)
         # The new rounds are numbered after the kept ones: a round tag names one process.
         first_rounds = {b["sphnl_round"] for b in first}
@@ -285,8 +311,8 @@ class TestRunAndLoad(TempDirCase):
 
 def fake_exp(**over):
     """A minimal `step` experiment definition (a copy of fig16's shape)."""
-    sweep = {"n": [8000], "gridder": ["B"], "order": ["sort_x"], "reorder": [1],
-             "list": ["cll", "vlc", "vlx"], "ns": [1, 3, 7, 14], "kgc": [0], "threads": [1]}
+    sweep = {"particles": [8000], "gridder": ["B"], "cell_order": ["sort_x"], "reorder": [1],
+             "list": ["cll", "vlc", "vlx"], "list_steps": [1, 3, 7, 14], "kgc": [0], "threads": [1]}
     proto = {"min_rounds": 3, "max_rounds": 5, "reps_per_round": 3,
              "target_halfwidth_pct": 1.0, "budget_s": 100}
     exp = {"id": "x", "benchmark": "step", "sweep": {s: dict(sweep) for s in R.SIZES},
@@ -308,7 +334,7 @@ class TestProtocolRules(unittest.TestCase):
 
     def test_window_must_cover_three_lifetimes(self):
         exp = fake_exp(window_steps={"default": 14})
-        exp["sweep"]["default"]["ns"] = [7, 14]  # a multiple of both, but one lifetime of 14
+        exp["sweep"]["default"]["list_steps"] = [7, 14]  # a multiple of both, but one lifetime of 14
         ok, message = P.window_ok(exp, "default")
         self.assertFalse(ok)
         self.assertIn("3 x 14 = 42", message)
@@ -616,12 +642,12 @@ def synthetic(rows):
     import pandas as pd
     out = []
     for params, ctr in rows:
-        full = {"experiment": "x", "family": "step", "order": "sort_x", "list": "cll", "ns": 1,
+        full = {"experiment": "x", "family": "step", "cell_order": "sort_x", "list": "cll", "list_steps": 1,
                 "kgc": 0, "threads": 1, "repetition_index": 0, "error_occurred": False,
                 "error_message": "", **params}
         out.append({**full, "run_name": R.format_run_name("step", {k: v for k, v in full.items()
                                                                   if k in R.FAMILY_KEYS["step"]}),
-                    "n_particles": params["n"], **ctr})
+                    "n_particles": params["particles"], **ctr})
     return pd.DataFrame(out)
 
 
@@ -630,7 +656,7 @@ class TestClaims(unittest.TestCase):
         rows = []
         for n in (8000, 31239, 60000):
             for g, f in (("A", slow_a * n / 8000), ("B", 1.2), ("C", 1.25), ("D", 1.0)):
-                rows.append(({"n": n, "gridder": g, "reorder": 0},
+                rows.append(({"particles": n, "gridder": g, "reorder": 0},
                              {"s_per_step": 1e-6 * n * f, "nl_bytes": 10 * n}))
         return synthetic(rows)
 
@@ -660,7 +686,7 @@ class TestClaims(unittest.TestCase):
         self.assertEqual(r["verdict"], "not reproduced", r)
 
     def test_not_measured(self):
-        small = synthetic([({"n": 1500, "gridder": g, "reorder": 0}, {"s_per_step": 1.0, "nl_bytes": 1})
+        small = synthetic([({"particles": 1500, "gridder": g, "reorder": 0}, {"s_per_step": 1.0, "nl_bytes": 1})
                            for g in "ABCD"])
         r = C.evaluate(self.claim("A_slower_3x"), small)
         self.assertEqual(r["verdict"], "not measured")
@@ -668,13 +694,13 @@ class TestClaims(unittest.TestCase):
         r = C.evaluate({**self.claim("A_slower_3x"), "id": "no_such_claim"}, self.gridder_data(1))
         self.assertEqual(r["verdict"], "not measured")
         one_n = self.gridder_data(1.0)
-        self.assertEqual(C.evaluate(self.claim("A_superlinear"), one_n[one_n["n"] == 60000])["verdict"],
+        self.assertEqual(C.evaluate(self.claim("A_superlinear"), one_n[one_n["particles"] == 60000])["verdict"],
                          "not measured")
 
     def test_nlnn_fit(self):
         """The claim is the exponent of the candidate pairs per step (N ln N: ~1.1),
         with the interactions and the runtime per interaction beside it."""
-        rows = [({"n": n, "gridder": "B", "reorder": 1},
+        rows = [({"particles": n, "gridder": "B", "reorder": 1},
                  {"s_per_step": 1e-7 * n ** 1.3, "candidates_per_particle": 10 * math.log(n),
                   "interactions_per_particle": 5 * math.log(n)}) for n in (8000, 16000, 31239, 60000)]
         r = C.evaluate(self.claim("neighbour_search_NlnN"), synthetic(rows))
@@ -682,7 +708,7 @@ class TestClaims(unittest.TestCase):
         self.assertAlmostEqual(r["value"], 1.105, places=2)
         self.assertAlmostEqual(r["related"]["k_runtime"]["value"], 1.3, places=6)
         self.assertLess(r["related"]["k_runtime_per_interaction"]["value"], 0.3)
-        quadratic = [(p, {**c, "candidates_per_particle": c["candidates_per_particle"] * p["n"]})
+        quadratic = [(p, {**c, "candidates_per_particle": c["candidates_per_particle"] * p["particles"]})
                      for p, c in rows]
         self.assertEqual(C.evaluate(self.claim("neighbour_search_NlnN"), synthetic(quadratic))["verdict"],
                          "not reproduced")

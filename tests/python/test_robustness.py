@@ -58,8 +58,14 @@ class BenchTest(unittest.TestCase):
             self.assertEqual(r.returncode, 2, r.stderr)
             self.assertIn(f"{exp}:7:", r.stderr)
             self.assertIn("unknown sweep axis 'gridderr'", r.stderr)
-            self.assertIn("allowed: n, gridder,", r.stderr)
+            self.assertIn("allowed: particles, gridder, cell_order,", r.stderr)
             self.assertNotIn("step/", r.stdout)  # nothing ran
+
+    def test_old_axis_name_says_what_it_was_renamed_to(self):
+        exp = self.experiment(lambda d: d.replace('"list_steps":', '"ns":', 1))
+        r = run([BENCH, f"--experiment={exp}", "--size=tiny", "--validate"])
+        self.assertEqual(r.returncode, 2, r.stderr)
+        self.assertRegex(r.stderr, rf"{exp}:7:\d+: sweep.tiny: sweep axis 'ns' was renamed to 'list_steps'")
 
     def test_run_py_validates_every_experiment_before_running_any(self):
         """experiments/run.py asks the bench's schema first: a misspelt axis stops
@@ -113,7 +119,7 @@ class BenchTest(unittest.TestCase):
     def test_debug_library_warning_is_explained(self):
         r = run([BENCH, f"--experiment={REPO / 'experiments' / 'cellindex.json'}", "--size=tiny",
                  f"--cache-dir={self.tmp / 'cache'}", "--benchmark_min_time=0",
-                 "--benchmark_filter=order:sort_x/"])
+                 "--benchmark_filter=cell_order:sort_x/"])
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assertIn("not about sphnl's timed code, which is a Release build", r.stderr)
 

@@ -36,10 +36,10 @@ def rows(configs, experiment="x"):
     for (lst, n), rounds in configs.items():
         for k, values in enumerate(rounds):
             for i, v in enumerate(values):
-                out.append({"experiment": experiment, "family": "step", "n": n, "gridder": "B",
-                            "order": "sort_x", "reorder": 1, "list": lst, "ns": 7, "kgc": 0, "threads": 1,
+                out.append({"experiment": experiment, "family": "step", "particles": n, "gridder": "B",
+                            "cell_order": "sort_x", "reorder": 1, "list": lst, "list_steps": 7, "kgc": 0, "threads": 1,
                             "flow_time": 0.35, "round": k, "repetition_index": i, "error_occurred": False,
-                            "error_message": "", "run_name": f"step/n:{n}/list:{lst}",
+                            "error_message": "", "run_name": f"step/particles:{n}/list:{lst}",
                             "n_particles": n, "s_per_step": v, "nl_bytes": 1000.0})
     return pd.DataFrame(out)
 
@@ -171,7 +171,7 @@ class TestTiesAndPooling(unittest.TestCase):
         claim = {**self.CLAIM, "id": "vlx_lighter_than_vlc", "at_n": 8000, "tie_within": 0.01}
         data = rows({("vlc", 8000): [[1.0], [1.0], [1.0]], ("vlx", 8000): [[0.9], [0.9], [0.9]]})
         data.loc[data["list"] == "vlx", "nl_bytes"] = 1000.0 - 0.004
-        data = data.assign(ns=[1, 7, 9] * 2)   # three n_s, one round each of every list
+        data = data.assign(list_steps=[1, 7, 9] * 2)   # three n_s, one round each of every list
         data = pd.concat([data.assign(round=k) for k in range(3)])
         r = C.evaluate(claim, data)
         self.assertEqual((r["value"], r["ci_low"], r["ci_high"]), (0.0, 0.0, 0.0))
@@ -217,6 +217,33 @@ class TestFlowStates(unittest.TestCase):
 
 
 class TestStoredResults(unittest.TestCase):
+    STORED = ("full", "reference", "default-20261202")
+
+    def test_stored_folders_load_in_todays_vocabulary(self):
+        """The committed runs were written with the old names (step/n:.../order:.../ns:...,
+        counter n); read through harness.results' alias table they have today's columns."""
+        for folder in self.STORED:
+            with self.subTest(folder=folder):
+                path = REPO / "results" / folder
+                raw = "".join(p.read_text(encoding="utf-8") for p in path.glob("fig*.json"))
+                self.assertIn('"step/n:', raw)  # stored as written: in the old vocabulary
+                df = R.load_run(path)
+                steps = df[df["family"] == "step"]
+                for col in ("particles", "cell_order", "list_steps", "gridder", "reorder", "list",
+                            "kgc", "threads", "flow_time", "n_particles"):
+                    self.assertIn(col, df, col)
+                    self.assertFalse(steps[col].isna().any(), col)
+                for old in ("n", "order", "ns", "hcoef"):
+                    self.assertNotIn(old, df)
+                self.assertFalse(df["run_name"].str.contains(r"/(?:n|order|ns|hcoef):").any())
+                self.assertTrue((steps["n_particles"] >= 0.99 * steps["particles"]).all())
+                cells = df[df["family"] == "cellindex"]
+                self.assertFalse(cells.empty)
+                self.assertFalse(cells[["particles", "cell_order"]].isna().any().any())
+                med = R.medians(steps)
+                self.assertTrue((med["N"] == med["n_particles"]).all())
+                self.assertIn(31239, set(med["particles"]))
+
     def test_old_format_results_still_give_intervals_and_verdicts(self):
         """results/reference was written before rounds existed: it must load,
         resample its repetitions and give every fig16 claim an interval."""

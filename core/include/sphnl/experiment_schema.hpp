@@ -4,7 +4,10 @@
 // registers a benchmark, and `sphnl_bench --validate` does only that.
 //
 // The tables of allowed keys and sweep axes are in experiment_schema.cpp
-// (kTopLevel, kAxes, kProtocol): a new key is one line there.
+// (the top-level checks, axes(), kProtocol): a new key is one line there.
+// Sweep axes are the run-config keys (README "Configuration"), so a point of a
+// sweep is a config as it stands; the few axes that are not run settings are
+// listed by benchmark_only_axes().
 #include <string>
 #include <vector>
 
@@ -19,5 +22,10 @@ std::vector<std::string> validate_experiment(const ParsedJson& doc);
 /// Reads `path` strictly (duplicate keys, syntax) and validates it; throws
 /// JsonFileError with every problem, one per line.
 nlohmann::json load_experiment(const std::string& path);
+
+/// Sweep axes that are not run-config keys (`flow_time`: which snapshot of the
+/// developed flow a window starts from). sphnl_bench takes these out of a
+/// sweep point before the rest goes to config_from_json.
+const std::vector<std::string>& benchmark_only_axes();
 
 }  // namespace sphnl
