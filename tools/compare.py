@@ -10,7 +10,9 @@ included, built into .compare/build-current. Both are built with
 -march=x86-64-v3 because valgrind 3.19 cannot execute AVX-512 instructions.
 
 Two figures per benchmark of experiments/compare.json (the new side's file is
-given to both binaries):
+given to both binaries; a base built before the sweep axes became the run-config
+keys rejects it, and gets a copy in the old names instead: old_names_experiment;
+benchmark names are matched in today's vocabulary, harness.results.canonical_run_name):
 
 * wall time per step (`s_per_step`), base and new runs alternated A B A B ...
   in this one invocation, compared with a two-sided Mann-Whitney U test and a
@@ -48,6 +50,9 @@ import tempfile
 import time
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))  # run as a script (tools/compare.py): the harness package is at the root
+from harness.results import OLD_AXES, canonical_run_name  # noqa: E402
+
 EXPERIMENT = "experiments/compare.json"
 BENCH_TARGET = "sphnl_bench"
 BENCH_RELPATH = pathlib.Path("benchmarks") / BENCH_TARGET
@@ -72,8 +77,11 @@ class CompareError(Exception):
 
 # ================================================================ parsing
 def parse_gb_json(doc, source="benchmark JSON"):
-    """{benchmark name: {'s_per_step', 'window_steps', 'iterations', 'real_time_s'}}
-    of the iteration entries of one Google Benchmark 1.7.1 JSON document.
+    """{benchmark name: {'s_per_step', 'window_steps', 'iterations', 'real_time_s',
+    'run_name'}} of the iteration entries of one Google Benchmark 1.7.1 JSON
+    document, keyed by the name in today's vocabulary (an older bench's
+    'step/n:6000/order:sort_x/...' as 'step/particles:6000/cell_order:sort_x/...');
+    'run_name' is the name as the bench wrote it (what its filter matches).
 
     Aggregates (`_mean`, `_median`, ...) are skipped; an entry that reports an
     error raises, since its figures would be meaningless."""
@@ -94,10 +102,11 @@ def parse_gb_json(doc, source="benchmark JSON"):
         if "s_per_step" not in entry or not steps:
             raise CompareError(f"{source}: {name} lacks the s_per_step / window_steps counters "
                                "of docs/CONTRACTS.md §2")
-        out[name] = {"s_per_step": float(entry["s_per_step"]),
-                     "window_steps": int(round(float(steps))),
-                     "iterations": int(entry.get("iterations", 1)),
-                     "real_time_s": float(entry.get("real_time", 0.0)) * unit}
+        out[canonical_run_name(name)] = {"s_per_step": float(entry["s_per_step"]),
+                                         "window_steps": int(round(float(steps))),
+                                         "iterations": int(entry.get("iterations", 1)),
+                                         "real_time_s": float(entry.get("real_time", 0.0)) * unit,
+                                         "run_name": name}
     if not out:
         raise CompareError(f"{source}: no benchmark ran (is the filter or the experiment empty?)")
     return out
@@ -512,6 +521,8 @@ class Side:
     bench: pathlib.Path
     cache_dir: pathlib.Path
     info: dict            # ref, sha, dirty: for the report
+    experiment: pathlib.Path = None   # the file this bench reads (experiment_for)
+    names: dict = dataclasses.field(default_factory=dict)  # today's name -> the name this bench writes
 
 
 def gb_filter(name):
@@ -520,13 +531,49 @@ def gb_filter(name):
 
 
 def bench_args(side, experiment, size, out_file, name=None):
+    experiment = side.experiment or experiment
     args = [str(side.bench), f"--experiment={experiment}", f"--size={size}",
             f"--cache-dir={side.cache_dir}", f"--benchmark_out={out_file}",
             "--benchmark_out_format=json", "--benchmark_repetitions=1",
             "--benchmark_min_time=0"]
     if name is not None:
-        args.insert(4, f"--benchmark_filter={gb_filter(name)}")
+        args.insert(4, f"--benchmark_filter={gb_filter(side.names.get(name, name))}")
     return args
+
+
+def old_names_experiment(doc):
+    """The experiment `doc` with its sweep axes in the vocabulary before the
+    run-config keys were used everywhere ('particles' -> 'n', 'cell_order' ->
+    'order', 'list_steps' -> 'ns'), for a base bench built before that change."""
+    to_old = {new: old for old, new in OLD_AXES.items()}
+    out = json.loads(json.dumps(doc))
+    for size, sweep in out.get("sweep", {}).items():
+        out["sweep"][size] = {to_old.get(axis, axis): values for axis, values in sweep.items()}
+    return out
+
+
+def experiment_for(side, experiment, size, work_dir):
+    """The experiment file `side`'s bench reads: `experiment` when its schema
+    accepts it (--validate), else a copy in the old sweep-axis names when that
+    one is accepted, or the bench predates --validate (and so the renaming)."""
+    def validate(path):
+        cmd = [str(side.bench), f"--experiment={path}", f"--size={size}",
+               f"--cache-dir={side.cache_dir}", "--validate"]
+        proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                              errors="replace")
+        return proc.returncode, proc.stdout
+    code, out = validate(experiment)
+    if code == 0:
+        return experiment
+    old = pathlib.Path(work_dir) / f"{side.label}-{experiment.stem}-old-names.json"
+    write_atomic(old, json.dumps(old_names_experiment(read_json(experiment, "benchmark set")),
+                                 indent=1) + "\n")
+    old_code, old_out = validate(old)
+    if old_code == 0 or re.search(r"unrecognized (command-line )?(flag|argument).*--validate", old_out):
+        return old
+    tail = "\n".join(out.splitlines()[-10:])
+    raise CompareError(f"the {side.label} bench rejects {experiment}, in today's sweep-axis names "
+                       f"and in the old ones; its message:\n{tail}")
 
 
 def valgrind_args(valgrind, out_file, command):
@@ -573,6 +620,7 @@ def timing_runs(sides, experiment, size, reps, work_dir, log_path, progress):
             run_checked(bench_args(side, experiment, size, out), side, log_path,
                         f"{side.label} benchmark run {rep + 1}")
             for name, fig in parse_gb_json(read_json(out, f"{side.label} run"), str(out)).items():
+                side.names[name] = fig["run_name"]
                 samples.setdefault(name, {}).setdefault(side.label, []).append(fig["s_per_step"])
     return samples
 
@@ -589,7 +637,8 @@ def callgrind_run(side, name, experiment, size, work_dir, valgrind):
     ir = parse_callgrind_ir(pathlib.Path(cg_out).read_text(errors="replace"), str(cg_out))
     figs = parse_gb_json(read_json(gb_out, "callgrind run"), str(gb_out))
     if name not in figs:
-        raise CompareError(f"callgrind run of {side.label}: {name} did not run (filter {gb_filter(name)})")
+        raise CompareError(f"callgrind run of {side.label}: {name} did not run "
+                           f"(filter {gb_filter(side.names.get(name, name))})")
     if ir == 0:
         raise CompareError(f"callgrind counted 0 instructions in {TIMED_FUNCTION} for the "
                            f"{side.label} binary: it lacks the noinline function "
@@ -716,6 +765,11 @@ def run(args, progress):
     shutil.rmtree(run_dir, ignore_errors=True)
     run_dir.mkdir(parents=True)
     log_path = run_dir / "bench.log"
+    for side in sides:
+        side.experiment = experiment_for(side, args.experiment, args.size, run_dir)
+        if side.experiment != args.experiment:
+            progress(f"the {side.label} bench predates today's sweep-axis names: it reads "
+                     f"{side.experiment.name}, and its benchmark names are matched in today's")
     samples = timing_runs(sides, args.experiment, args.size, args.reps, run_dir, log_path, progress)
     both = sorted(n for n, s in samples.items() if len(s) == 2)
     if not both:

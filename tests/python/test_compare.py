@@ -18,8 +18,10 @@ _spec = importlib.util.spec_from_file_location("sphnl_compare", REPO / "tools" /
 C = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(C)
 
-NAME_B = "step/n:6000/gridder:B/order:sort_x/reorder:1/list:cll/ns:7/kgc:0/threads:1"
-NAME_D = "step/n:6000/gridder:D/order:sort_x/reorder:1/list:cll/ns:7/kgc:0/threads:1"
+NAME_B = "step/particles:6000/gridder:B/cell_order:sort_x/reorder:1/list:cll/list_steps:7/kgc:0/threads:1"
+NAME_D = "step/particles:6000/gridder:D/cell_order:sort_x/reorder:1/list:cll/list_steps:7/kgc:0/threads:1"
+# The same benchmark as an older bench names it (before the run-config keys were the names).
+OLD_NAME_B = "step/n:6000/gridder:B/order:sort_x/reorder:1/list:cll/ns:7/kgc:0/threads:1"
 TIMES = {NAME_B: ([2.0e-3, 2.1e-3, 1.9e-3, 2.05e-3, 1.95e-3],
                   [2.0e-3, 2.2e-3, 1.9e-3, 2.0e-3, 2.1e-3]),
          NAME_D: ([1.5e-3] * 5, [1.5e-3] * 5)}
@@ -60,6 +62,21 @@ class ParseTest(unittest.TestCase):
             C.parse_gb_json(no_counter)
         with self.assertRaisesRegex(C.CompareError, "not Google Benchmark JSON"):
             C.parse_gb_json({"foo": 1})
+
+    def test_old_names_are_keyed_in_todays_vocabulary(self):
+        figs = C.parse_gb_json({"benchmarks": [gb_entry(OLD_NAME_B, 2e-3)]})
+        self.assertEqual(list(figs), [NAME_B])
+        self.assertEqual(figs[NAME_B]["run_name"], OLD_NAME_B)  # what that bench's filter matches
+
+    def test_old_names_experiment_renames_only_the_sweep_axes(self):
+        exp = json.loads((REPO / "experiments" / "compare.json").read_text(encoding="utf-8"))
+        old = C.old_names_experiment(exp)
+        for size, sweep in old["sweep"].items():
+            self.assertEqual(list(sweep)[:3], ["n", "gridder", "order"], size)
+            self.assertEqual(sweep["ns"], exp["sweep"][size]["list_steps"])
+            self.assertNotIn("particles", sweep)
+        self.assertEqual({k: v for k, v in old.items() if k != "sweep"},
+                         {k: v for k, v in exp.items() if k != "sweep"})
 
     def test_callgrind_totals_and_summary(self):
         text = "version: 1\ncreator: callgrind-3.19.0\nevents: Ir\nfn=(1) main\n3 7\nsummary: 123456\ntotals: 123457\n"
@@ -215,13 +232,16 @@ class OutputTest(unittest.TestCase):
 
 # ------------------------------------------------------------ end to end
 FAKE_BENCH = '''#!/usr/bin/python3
-# Fake sphnl_bench: the flags of docs/CONTRACTS.md section 2, one benchmark per n.
+# Fake sphnl_bench: the flags of docs/CONTRACTS.md section 2, one benchmark per
+# particle count, whose axis and name key is AXIS ("particles"; "n" before the rename).
 import json, os, re, sys
-IR_PER_STEP = {ir}
+IR_PER_STEP, AXIS = {ir}, "{axis}"
 args = dict(a[2:].split("=", 1) for a in sys.argv[1:] if "=" in a)
 exp = json.load(open(args["experiment"]))
+if "--validate" in sys.argv:
+    sys.exit(0 if all(AXIS in sweep for sweep in exp["sweep"].values()) else 2)
 size, steps = args["size"], exp["window_steps"][args["size"]]
-names = ["step/n:%d/gridder:B" % n for n in exp["sweep"][size]["n"]]
+names = ["step/%s:%d/gridder:B" % (AXIS, n) for n in exp["sweep"][size][AXIS]]
 names = [n for n in names if re.search(args.get("benchmark_filter", ""), n)]
 os.makedirs(args["cache-dir"], exist_ok=True)
 entries = [dict(name=n, run_name=n, run_type="iteration", iterations=1, real_time=1.0,
@@ -249,7 +269,7 @@ add_custom_target(sphnl_bench ALL
           ${CMAKE_BINARY_DIR}/benchmarks/sphnl_bench)
 '''
 EXPERIMENT = {"id": "compare", "benchmark": "step",
-              "sweep": {"default": {"n": [100, 200]}}, "window_steps": {"default": 4}}
+              "sweep": {"default": {"particles": [100, 200]}}, "window_steps": {"default": 4}}
 
 
 @unittest.skipUnless(shutil.which("git") and shutil.which("cmake"), "needs git and cmake")
@@ -287,9 +307,9 @@ class EndToEndTest(unittest.TestCase):
         self.git("commit", "-q", "-a", "-m", message)
         return self.git("rev-parse", "HEAD")
 
-    def write_bench(self, ir_per_step):
+    def write_bench(self, ir_per_step, axis="particles"):
         path = self.repo / "benchmarks" / "bench.py"
-        path.write_text(FAKE_BENCH.format(ir=ir_per_step), encoding="utf-8")
+        path.write_text(FAKE_BENCH.format(ir=ir_per_step, axis=axis), encoding="utf-8")
         path.chmod(0o755)
 
     def compare(self, *extra):
@@ -312,7 +332,7 @@ class EndToEndTest(unittest.TestCase):
         self.write_bench(1050)  # uncommitted edit: the new side sees it
         code, out, err = self.compare()  # default base: merge base with main
         self.assertEqual(code, 1, err)
-        self.assertIn("REGRESSION: step/n:100/gridder:B: instructions per step +5.00 %", out)
+        self.assertIn("REGRESSION: step/particles:100/gridder:B: instructions per step +5.00 %", out)
         self.assertIn("--toggle-collect=sphnl::bench::timed_window*", out)
         report = json.loads((self.root / "out" / "compare.json").read_text(encoding="utf-8"))
         self.assertTrue(report["new"]["dirty"])
@@ -320,6 +340,25 @@ class EndToEndTest(unittest.TestCase):
         # the user's tree is untouched and the base worktree is registered once
         self.assertIn("1050", (self.repo / "benchmarks" / "bench.py").read_text(encoding="utf-8"))
         self.assertEqual(self.git("worktree", "list").count("worktree-"), 1)
+
+    def test_base_in_the_old_vocabulary(self):
+        """A base built before the rename rejects today's sweep axes: it gets
+        the file in the old names, and its 'step/n:100/...' matches 'step/particles:100/...'."""
+        self.write_bench(1000, axis="n")
+        old = self.commit("the bench of the old vocabulary")
+        self.write_bench(1050)  # today's names, 5 % more instructions
+        code, out, err = self.compare("--base", old)
+        self.assertEqual(code, 1, err + out)
+        self.assertIn("predates today's sweep-axis names", err)
+        self.assertIn("REGRESSION: step/particles:100/gridder:B: instructions per step +5.00 %", out)
+        report = json.loads((self.root / "out" / "compare.json").read_text(encoding="utf-8"))
+        self.assertEqual([r["name"] for r in report["benchmarks"]],
+                         ["step/particles:100/gridder:B", "step/particles:200/gridder:B"])
+        self.assertNotIn("ran only on", err)
+        base_cmd, new_cmd = report["benchmarks"][0]["reproduce"]
+        self.assertIn("old-names.json", base_cmd)
+        self.assertIn(r"--benchmark_filter=^step/n:100/gridder:B$", base_cmd)
+        self.assertIn(r"--benchmark_filter=^step/particles:100/gridder:B$", new_cmd)
 
     def test_committed_regression_with_acceptance_line_passes(self):
         base = self.git("rev-parse", "HEAD")
