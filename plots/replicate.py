@@ -9,8 +9,8 @@ when a run folder lacks it) and writes replication.md and replication.json
 into B's folder, or into --out: for every claim both values with their 95 %
 intervals, whether the intervals overlap, whether the verdicts agree, and
 the share of the claims resolved in both runs (neither `unresolved` nor
-`not measured`) that got the same verdict in both (the issue's target: at
-least 90 %).
+`not measured`) that got the same verdict in both (target: at least 90 %,
+docs/MEASUREMENT.md, "Targets").
 """
 import argparse
 import json

@@ -35,7 +35,7 @@ TITLE = ("Reproduction of Domínguez, Crespo, Gómez-Gesteira and Marongiu (2011
          "\"Neighbour lists in smoothed particle hydrodynamics\"")
 UNITS = {"%": " %", "pp": " pp", "x": "x", "MB": " MB", "fraction": "", "": ""}
 VERDICTS = C.VERDICTS
-# Issue targets, printed so a run can be checked against them (docs/MEASUREMENT.md).
+# The targets a run is checked against, printed with it (docs/MEASUREMENT.md, "Targets").
 TARGET_PP = 2.0        # improvement claims at N >= 31 000: half-width at most 2 pp
 TARGET_RATIO = 5.0     # ratio claims: half-width at most 5 % of the value
 TARGET_RESOLVED = 0.8  # share of claims not `unresolved`
@@ -154,7 +154,7 @@ def rounds_section(run_dir):
 
 
 def targets(results):
-    """Lines that check the issue's targets on this run: share resolved,
+    """Lines that check the targets of docs/MEASUREMENT.md on this run: share resolved,
     interval half-widths of improvement (pp) and ratio (x) claims."""
     measured = [r for r in results if r["verdict"] != "not measured"]
     resolved = [r for r in measured if r["verdict"] != "unresolved"]

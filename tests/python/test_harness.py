@@ -134,7 +134,7 @@ class TestExperiments(unittest.TestCase):
                         self.assertTrue(partly[end] <= rep[end] if lo_side else partly[end] >= rep[end],
                                         c["id"])
 
-    def test_issue_claims_present(self):
+    def test_the_papers_claims_present(self):
         ids = {c["id"] for e in self.exps.values() for c in e["claims"]}
         for needed in ("table1_cll_list", "table1_vl_force", "A_slower_3x", "A_superlinear",
                        "D_vs_B_unsorted", "C_memory_20x", "A_least_memory", "reorder_gain_BCD",

@@ -1,5 +1,5 @@
 """End to end at the tiny size: the real sphnl_bench -> results JSON -> figures
-and REPRODUCTION.md (issue 4). `make test` sets SPHNL_BUILD_DIR; without it
+and REPRODUCTION.md (docs/CONTRACTS.md §3). `make test` sets SPHNL_BUILD_DIR; without it
 (e.g. a bare `python -m unittest`) the test is skipped, with it a missing
 binary is a failure."""
 import json
