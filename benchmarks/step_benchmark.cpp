@@ -26,7 +26,7 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
       developed_flow({cfg.particles, cfg.lattice, cfg.h_coefficient, flow_time}, flow_times, cache_dir);
   cfg.dx = start.case_info().dx;  // the same case, without searching dx again
   Simulation sim(cfg);
-  std::size_t max_bytes = 0;  // over every step of every window (CONTRACTS.md: nl_bytes)
+  std::size_t max_bytes = 0;  // over every step of every window (docs/CONTRACTS.md §2: nl_bytes)
   for (auto _ : state) {
     state.PauseTiming();
     sim.restore(start.particles(), start.time(), start.steps_done(), start.lost());

@@ -14,7 +14,7 @@ import re
 from harness import protocol as P
 
 SIZES = ("tiny", "default", "full")
-# Name segments of each benchmark family, in the order of CONTRACTS.md §2. Sweep
+# Name segments of each benchmark family, in the order of docs/CONTRACTS.md §2. Sweep
 # axes, name segment keys and DataFrame columns are one vocabulary: the run-config
 # keys of README "Configuration" (plus flow_time, which picks the snapshot).
 FAMILY_KEYS = {

@@ -72,7 +72,7 @@ def memory_model(p):
 
 
 def counters(p, t, share_list, steps):
-    """The user counters of CONTRACTS.md for one `step` repetition."""
+    """The user counters of docs/CONTRACTS.md §2 for one `step` repetition."""
     t *= {0.2: 0.97, 0.5: 1.04}.get(p.get("flow_time", 0.35), 1.0)  # the flow spreads
     rebuilds = steps if p["list"] == "cll" else max(1, math.ceil(steps / p["list_steps"]))
     return {"n_particles": p["particles"], "n_fluid": int(p["particles"] * 0.4), "window_steps": steps,
