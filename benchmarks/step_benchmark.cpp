@@ -15,8 +15,12 @@ using nlohmann::json;
 
 namespace {
 
+// Optional ablation axes (README.md, "Ablations") carry their config key's name.
+const std::vector<std::string> kAblationAxes = {"pair_loop", "simd", "skip_boundary_pairs", "gridder_a_variant",
+                                                "initial_order", "extra_loops"};
 const std::vector<std::string> kAxes = {"n", "gridder", "order", "reorder", "list", "ns", "kgc", "threads", "lattice",
-                                        "h_coefficient", "flow_time"};
+                                        "h_coefficient", "flow_time", "pair_loop", "simd", "skip_boundary_pairs",
+                                        "gridder_a_variant", "initial_order", "extra_loops"};
 
 RunConfig config_for(const Point& p) {
   json j = json::object();
@@ -33,6 +37,7 @@ RunConfig config_for(const Point& p) {
   take("threads", "threads");
   take("lattice", "lattice");
   take("h_coefficient", "h_coefficient");  // flow_time is not a run setting: it picks the snapshot
+  for (const auto& axis : kAblationAxes) take(axis.c_str(), axis.c_str());
   j["progress"] = false;
   return config_from_json(j);
 }
@@ -82,6 +87,7 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
   c["interactions_per_particle"] = 2.0 * static_cast<double>(s.interactions) / steps / n;
   c["pairs_per_s"] = static_cast<double>(s.interactions) / t.force;
   c["vl_misses"] = static_cast<double>(s.vl_misses);
+  c["extra_loop_passes"] = static_cast<double>(s.extra_loop_passes);
   c["list_bytes"] = static_cast<double>(s.max_list_bytes);
   c["forced_rebuilds"] = static_cast<double>(s.forced_rebuilds);
   c["skin_over_h"] = s.skin / sim.physics().h();

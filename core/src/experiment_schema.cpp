@@ -41,6 +41,13 @@ const std::vector<Axis>& axes() {
       {"h_coefficient", "h_coefficient", {"step"}, {}, {}},
       // simulated time of the developed flow the window starts from (s)
       {"flow_time", "", {"step"}, {}, positive_number},
+      // ablations (README.md, "Ablations"): optional, default the normal path
+      {"pair_loop", "pair_loop", {"step"}, {}, {}},
+      {"simd", "simd", {"step"}, {}, {}},
+      {"skip_boundary_pairs", "skip_boundary_pairs", {"step"}, {}, {}},
+      {"gridder_a_variant", "gridder_a_variant", {"step"}, {}, {}},
+      {"initial_order", "initial_order", {"step"}, {}, {}},
+      {"extra_loops", "extra_loops", {"step"}, {}, {}},
   };
   return table;
 }

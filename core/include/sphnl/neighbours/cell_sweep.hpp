@@ -15,6 +15,8 @@
 
 #include <array>
 #include <cstdint>
+#include <span>
+#include <stdexcept>
 #include <vector>
 
 #include "sphnl/grid.hpp"
@@ -36,6 +38,7 @@ class CellSweep {
     CellBuffer buffer;
     std::vector<std::uint32_t> cell_index;
     std::vector<std::uint32_t> survivors;
+    std::vector<std::uint32_t> fluid_slots;  // skip_boundary_pairs: fluid entries of the buffer
     ThreadAccumulators private_acc;  // threads > 0
     ParticleView target;
   };
@@ -76,6 +79,51 @@ class CellSweep {
     if (outputs) reduce(ps, outputs, threads);
   }
 
+  /// The 13 forward neighbour cells of a home cell, read in place.
+  struct ForwardCells {
+    std::array<std::span<const std::uint32_t>, kHalfStencil.size()> cells;
+    int count = 0;
+  };
+
+  /// `pair_loop=direct` (README.md, "Ablations"): no gather. Runs
+  /// `visit(thread, scratch, home, forward)` for every non-empty home cell,
+  /// with the particle indices of the home cell and of its forward cells as
+  /// the gridder stores them (Gridder::cell_members), so the visitor reads the
+  /// particle arrays in place, as the paper's code did. scratch.target views
+  /// the particles, its accumulators private for threads > 0. Not for a
+  /// periodic grid (no image shift without a copy).
+  template <class Visit>
+  void run_direct(const CellGrid& grid, const CellOrder& order, const Gridder& gridder, ParticleSet& ps,
+                  unsigned mask, int threads, Visit&& visit) {
+    if (grid.period_y > 0) throw std::logic_error("CellSweep::run_direct: a periodic grid needs the gather sweep");
+    prepare(gridder, ps, mask, threads, /*gather=*/false);
+    split_keys(order, gridder, ps, threads);
+    const std::uint64_t* coords = order.key_coords().data();
+    const unsigned outputs = mask & (fields::force_out | fields::kgc_m_out);
+#pragma omp parallel num_threads(threads)
+    {
+      const int t = omp_get_thread_num();
+      Scratch& s = scratch_[t];
+      std::uint32_t* idx = s.cell_index.data();  // gridder D writes its walks here
+      for (std::uint32_t key = thread_begin_[t]; key < thread_begin_[t + 1]; ++key) {
+        const std::uint64_t c = coords[key];
+        if (c == CellOrder::kNoCellCoords) continue;
+        const std::span<const std::uint32_t> home = gridder.cell_members(key, idx);
+        if (home.empty()) continue;
+        std::uint32_t used = home.data() == idx ? static_cast<std::uint32_t>(home.size()) : 0;
+        ForwardCells forward;
+        for_each_stencil_cell(grid, order, CellOrder::unpack_coords(c), kHalfStencil, [&](std::uint32_t k, double) {
+          const std::span<const std::uint32_t> cell = gridder.cell_members(k, idx + used);
+          if (cell.empty()) return;
+          if (cell.data() == idx + used) used += static_cast<std::uint32_t>(cell.size());
+          forward.cells[forward.count++] = cell;
+        });
+        visit(t, s, home, forward);
+      }
+    }
+    if (outputs) reduce(ps, outputs, threads);
+  }
+
   std::size_t bytes() const;
 
  private:
@@ -83,7 +131,8 @@ class CellSweep {
     std::uint32_t begin, end;
     double shift;
   };
-  void prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads);
+  /// gather = false (run_direct): no CellBuffer is allocated.
+  void prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads, bool gather = true);
   /// Fills thread_begin_: thread t sweeps keys [thread_begin_[t], thread_begin_[t+1]).
   void split_keys(const CellOrder& order, const Gridder& gridder, const ParticleSet& ps, int threads);
   std::vector<std::uint32_t> thread_begin_;

@@ -1,0 +1,76 @@
+#pragma once
+// Gridder A, "sliding dynamic vector" (paper §2.3, Fig. 2), variant
+// `gridder_a_variant=shift_all`: particles are inserted one by one into
+// PartsSorted at the end of their cell, displacing every particle stored after
+// that point by one slot, and CellsBegin of EVERY later cell of the grid is
+// moved up by one. The displacements cost O(N) per insertion in scattered
+// order and nothing in cell order, but the re-adjustment of CellsBegin costs
+// O(cells) per insertion whatever the order. The paper's variant, whose
+// insertions in cell order cost O(1), is SlidingVector (sliding_vector.hpp);
+// this one is kept as an ablation (README.md, "Ablations").
+#include <algorithm>
+#include <cstring>
+
+#include "sphnl/gridders/gridder.hpp"
+#include "sphnl/orderings/cell_order.hpp"
+
+namespace sphnl {
+
+class SlidingVectorShiftAll final : public Gridder {
+ public:
+  const char* name() const override { return "A"; }
+
+  void build(std::span<const std::uint32_t> cell_key, std::uint32_t num_keys) override {
+    num_keys_ = num_keys;
+    const std::size_t n = cell_key.size();
+    cells_begin_.assign(std::size_t{num_keys} + 1, 0);
+    parts_sorted_.resize(n);  // capacity for every particle; `stored` is the used length
+    std::uint32_t* parts = parts_sorted_.data();
+    std::uint32_t* begin = cells_begin_.data();
+    std::uint32_t stored = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::uint32_t c = cell_key[i];
+      if (c == kNoCell) continue;
+      // Insert at the end of cell c: slide PartsSorted[at, stored) one slot up...
+      const std::uint32_t at = begin[c + 1];
+      std::memmove(parts + at + 1, parts + at, std::size_t{stored - at} * sizeof(std::uint32_t));
+      parts[at] = static_cast<std::uint32_t>(i);
+      ++stored;
+      // ...and re-adjust CellsBegin of every later cell.
+      for (std::uint32_t k = c + 1; k <= num_keys; ++k) ++begin[k];
+    }
+    std::uint32_t max_count = 0;
+    for (std::uint32_t k = 0; k < num_keys; ++k) max_count = std::max(max_count, begin[k + 1] - begin[k]);
+    max_cell_count_ = max_count;
+    stored_ = stored;
+  }
+
+  std::uint32_t gather_cell(std::uint32_t key, std::uint32_t* out) const override {
+    const std::uint32_t b = cells_begin_[key], e = cells_begin_[key + 1];
+    std::copy(parts_sorted_.begin() + b, parts_sorted_.begin() + e, out);
+    return e - b;
+  }
+
+  std::span<const std::uint32_t> cell_members(std::uint32_t key, std::uint32_t*) const override {
+    return {parts_sorted_.data() + cells_begin_[key], cells_begin_[key + 1] - cells_begin_[key]};
+  }
+
+  void cell_order_permutation(std::vector<std::uint32_t>& order) const override {
+    order.assign(parts_sorted_.begin(), parts_sorted_.begin() + stored_);
+  }
+
+  void renumber(std::span<const std::uint32_t> new_index_of_old) override {
+    for (std::uint32_t k = 0; k < stored_; ++k) parts_sorted_[k] = new_index_of_old[parts_sorted_[k]];
+  }
+
+  std::size_t bytes() const override {
+    return (cells_begin_.capacity() + parts_sorted_.capacity()) * sizeof(std::uint32_t);
+  }
+
+ private:
+  std::vector<std::uint32_t> cells_begin_;   // CellsBegin: first slot of each cell, plus the end
+  std::vector<std::uint32_t> parts_sorted_;  // PartsSorted: particle indices grouped by cell
+  std::uint32_t stored_ = 0;                 // gridded particles (out ones are not stored)
+};
+
+}  // namespace sphnl
