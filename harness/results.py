@@ -17,7 +17,10 @@ SIZES = ("tiny", "default", "full")
 # Name segments of each benchmark family, in the order of CONTRACTS.md §2.
 FAMILY_KEYS = {
     "step": ["n", "gridder", "order", "reorder", "list", "ns", "kgc", "threads",
-             "lattice", "h_coefficient", "flow_time"],
+             "lattice", "h_coefficient", "flow_time",
+             # optional ablation axes (README.md, "Ablations")
+             "pair_loop", "simd", "skip_boundary_pairs", "gridder_a_variant", "initial_order",
+             "extra_loops"],
     "cellindex": ["order", "n"],
     "search": ["n", "gridder", "order", "reorder", "threads"],
 }
