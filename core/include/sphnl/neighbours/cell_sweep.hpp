@@ -48,35 +48,25 @@ class CellSweep {
   template <class Visit>
   void run(const CellGrid& grid, const CellOrder& order, const Gridder& gridder, ParticleSet& ps, unsigned mask,
            int threads, Visit&& visit) {
-    prepare(gridder, ps, mask, threads);
-    split_keys(order, gridder, ps, threads);
-    const std::uint64_t* coords = order.key_coords().data();
     const unsigned outputs = mask & (fields::force_out | fields::kgc_m_out);
-#pragma omp parallel num_threads(threads)
-    {
-      const int t = omp_get_thread_num();
-      Scratch& s = scratch_[t];
-      std::uint32_t* idx = s.cell_index.data();
-      for (std::uint32_t key = thread_begin_[t]; key < thread_begin_[t + 1]; ++key) {
-        const std::uint64_t c = coords[key];
-        if (c == CellOrder::kNoCellCoords) continue;
-        const std::uint32_t n_home = gridder.gather_cell(key, idx);
-        if (n_home == 0) continue;
-        std::uint32_t total = n_home;
-        int n_seam = 0;  // neighbour cells across a periodic seam: gathered range and y shift
-        std::array<SeamCell, kHalfStencil.size()> seam;
-        for_each_stencil_cell(grid, order, CellOrder::unpack_coords(c), kHalfStencil, [&](std::uint32_t k, double shift) {
-          const std::uint32_t begin = total;
-          total += gridder.gather_cell(k, idx + total);
-          if (shift != 0 && total > begin) seam[n_seam++] = {begin, total, shift};
-        });
-        s.buffer.gather(ps, idx, total, mask);
-        for (int k = 0; k < n_seam; ++k) s.buffer.shift_y(seam[k].begin, seam[k].end, seam[k].shift);
-        visit(t, s, n_home);
-        if (outputs) s.buffer.scatter_add(s.target, outputs);
-      }
-    }
-    if (outputs) reduce(ps, outputs, threads);
+    sweep(order, gridder, ps, mask, threads, /*gather=*/true,
+          [&](int t, Scratch& s, std::uint32_t key, CellOrder::Coords home) {
+            std::uint32_t* idx = s.cell_index.data();
+            const std::uint32_t n_home = gridder.gather_cell(key, idx);
+            if (n_home == 0) return;
+            std::uint32_t total = n_home;
+            int n_seam = 0;  // neighbour cells across a periodic seam: gathered range and y shift
+            std::array<SeamCell, kHalfStencil.size()> seam;
+            for_each_stencil_cell(grid, order, home, kHalfStencil, [&](std::uint32_t k, double shift) {
+              const std::uint32_t begin = total;
+              total += gridder.gather_cell(k, idx + total);
+              if (shift != 0 && total > begin) seam[n_seam++] = {begin, total, shift};
+            });
+            s.buffer.gather(ps, idx, total, mask);
+            for (int k = 0; k < n_seam; ++k) s.buffer.shift_y(seam[k].begin, seam[k].end, seam[k].shift);
+            visit(t, s, n_home);
+            if (outputs) s.buffer.scatter_add(s.target, outputs);
+          });
   }
 
   /// The 13 forward neighbour cells of a home cell, read in place.
@@ -96,32 +86,21 @@ class CellSweep {
   void run_direct(const CellGrid& grid, const CellOrder& order, const Gridder& gridder, ParticleSet& ps,
                   unsigned mask, int threads, Visit&& visit) {
     if (grid.period_y > 0) throw std::logic_error("CellSweep::run_direct: a periodic grid needs the gather sweep");
-    prepare(gridder, ps, mask, threads, /*gather=*/false);
-    split_keys(order, gridder, ps, threads);
-    const std::uint64_t* coords = order.key_coords().data();
-    const unsigned outputs = mask & (fields::force_out | fields::kgc_m_out);
-#pragma omp parallel num_threads(threads)
-    {
-      const int t = omp_get_thread_num();
-      Scratch& s = scratch_[t];
-      std::uint32_t* idx = s.cell_index.data();  // gridder D writes its walks here
-      for (std::uint32_t key = thread_begin_[t]; key < thread_begin_[t + 1]; ++key) {
-        const std::uint64_t c = coords[key];
-        if (c == CellOrder::kNoCellCoords) continue;
-        const std::span<const std::uint32_t> home = gridder.cell_members(key, idx);
-        if (home.empty()) continue;
-        std::uint32_t used = home.data() == idx ? static_cast<std::uint32_t>(home.size()) : 0;
-        ForwardCells forward;
-        for_each_stencil_cell(grid, order, CellOrder::unpack_coords(c), kHalfStencil, [&](std::uint32_t k, double) {
-          const std::span<const std::uint32_t> cell = gridder.cell_members(k, idx + used);
-          if (cell.empty()) return;
-          if (cell.data() == idx + used) used += static_cast<std::uint32_t>(cell.size());
-          forward.cells[forward.count++] = cell;
-        });
-        visit(t, s, home, forward);
-      }
-    }
-    if (outputs) reduce(ps, outputs, threads);
+    sweep(order, gridder, ps, mask, threads, /*gather=*/false,
+          [&](int t, Scratch& s, std::uint32_t key, CellOrder::Coords home_coords) {
+            std::uint32_t* idx = s.cell_index.data();  // gridder D writes its walks here
+            const std::span<const std::uint32_t> home = gridder.cell_members(key, idx);
+            if (home.empty()) return;
+            std::uint32_t used = home.data() == idx ? static_cast<std::uint32_t>(home.size()) : 0;
+            ForwardCells forward;
+            for_each_stencil_cell(grid, order, home_coords, kHalfStencil, [&](std::uint32_t k, double) {
+              const std::span<const std::uint32_t> cell = gridder.cell_members(k, idx + used);
+              if (cell.empty()) return;
+              if (cell.data() == idx + used) used += static_cast<std::uint32_t>(cell.size());
+              forward.cells[forward.count++] = cell;
+            });
+            visit(t, s, home, forward);
+          });
   }
 
   std::size_t bytes() const;
@@ -131,6 +110,27 @@ class CellSweep {
     std::uint32_t begin, end;
     double shift;
   };
+  /// Prepares the threads' scratch, splits the keys between the threads,
+  /// calls home(thread, scratch, key, coords) for every key of a real cell in
+  /// each thread's range, then sums the private accumulators.
+  template <class Home>
+  void sweep(const CellOrder& order, const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads, bool gather,
+             Home&& home) {
+    prepare(gridder, ps, mask, threads, gather);
+    split_keys(order, gridder, ps, threads);
+    const std::uint64_t* coords = order.key_coords().data();
+#pragma omp parallel num_threads(threads)
+    {
+      const int t = omp_get_thread_num();
+      Scratch& s = scratch_[t];
+      for (std::uint32_t key = thread_begin_[t]; key < thread_begin_[t + 1]; ++key) {
+        const std::uint64_t c = coords[key];
+        if (c != CellOrder::kNoCellCoords) home(t, s, key, CellOrder::unpack_coords(c));
+      }
+    }
+    const unsigned outputs = mask & (fields::force_out | fields::kgc_m_out);
+    if (outputs) reduce(ps, outputs, threads);
+  }
   /// gather = false (run_direct): no CellBuffer is allocated.
   void prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads, bool gather = true);
   /// Fills thread_begin_: thread t sweeps keys [thread_begin_[t], thread_begin_[t+1]).
