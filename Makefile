@@ -4,6 +4,7 @@
 #   make test                      build and run every test (what CI runs)
 #   make reproduce [FULL=1] [MAX_N=n]  benchmarks -> results/<run-id>/ -> figures + REPRODUCTION.md
 #                  [FORCE_MERGE=reason]  add a part made by other code to an existing run (recorded)
+#   make ablations [FULL=1]        the ablation studies (experiments/ablation_*.json, beyond_loops)
 #   make figures RESULTS=dir       redraw figures and report from stored JSON only
 #   make bench ARGS="..."          run the benchmark binary with ARGS passed through
 #   make compare [BASE=ref] [THRESHOLD=2]   compare performance against another git ref
@@ -40,7 +41,7 @@ PORTABLE_BUILD ?= build-portable
 # double CI time while exercising the same code the other tests cover.
 SANITIZE_SKIP ?= ^Validation\.
 
-.PHONY: all deps configure build test test-cpp test-python test-sanitize test-portable reproduce figures bench compare run replicate clean
+.PHONY: all deps configure build test test-cpp test-python test-sanitize test-portable reproduce ablations figures bench compare run replicate clean
 
 all: build
 
@@ -79,6 +80,15 @@ test-portable: build
 
 reproduce: build
 	$(PYTHON) -m experiments.run --size $(SIZE) --run-id $(RUN_ID) --bench $(BUILD)/benchmarks/sphnl_bench $(if $(MAX_N),--max-n $(MAX_N)) $(if $(FORCE_MERGE),--force-merge "$(FORCE_MERGE)")
+	$(PYTHON) -m plots.report results/$(RUN_ID)
+	@echo "sphnl: report: results/$(RUN_ID)/REPRODUCTION.md"
+
+# The ablation studies (README.md, "Ablations"): not part of `make reproduce`
+# (its default size must stay within 25 min); run into the same folder.
+ABLATIONS := ablation_pair_loop,ablation_simd,ablation_boundary_pairs,ablation_gridder_a,ablation_initial_order,beyond_loops
+
+ablations: build
+	$(PYTHON) -m experiments.run --size $(SIZE) --run-id $(RUN_ID) --only $(ABLATIONS) --bench $(BUILD)/benchmarks/sphnl_bench $(if $(MAX_N),--max-n $(MAX_N)) $(if $(FORCE_MERGE),--force-merge "$(FORCE_MERGE)")
 	$(PYTHON) -m plots.report results/$(RUN_ID)
 	@echo "sphnl: report: results/$(RUN_ID)/REPRODUCTION.md"
 

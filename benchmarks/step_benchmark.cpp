@@ -16,8 +16,11 @@ using nlohmann::json;
 namespace {
 
 // Name segments in this order (docs/CONTRACTS.md §2); an axis not listed comes after them.
+// The optional ablation axes (README.md, "Ablations") come last.
 const std::vector<std::string> kAxes = {"particles", "gridder", "cell_order", "reorder", "list", "list_steps",
-                                        "kgc", "threads", "lattice", "h_coefficient", "flow_time"};
+                                        "kgc", "threads", "lattice", "h_coefficient", "flow_time",
+                                        "pair_loop", "simd", "skip_boundary_pairs", "gridder_a_variant",
+                                        "initial_order", "extra_loops"};
 
 void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const std::vector<double>& flow_times,
                int window, const std::string& cache_dir) {
@@ -56,6 +59,7 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
   c["interactions_per_particle"] = 2.0 * static_cast<double>(s.interactions) / steps / n;
   c["pairs_per_s"] = static_cast<double>(s.interactions) / t.force;
   c["vl_misses"] = static_cast<double>(s.vl_misses);
+  c["extra_loop_passes"] = static_cast<double>(s.extra_loop_passes);
   c["list_bytes"] = static_cast<double>(s.max_list_bytes);
   c["forced_rebuilds"] = static_cast<double>(s.forced_rebuilds);
   c["skin_over_h"] = s.skin / sim.physics().h();

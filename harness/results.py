@@ -19,7 +19,10 @@ SIZES = ("tiny", "default", "full")
 # keys of README "Configuration" (plus flow_time, which picks the snapshot).
 FAMILY_KEYS = {
     "step": ["particles", "gridder", "cell_order", "reorder", "list", "list_steps", "kgc",
-             "threads", "lattice", "h_coefficient", "flow_time"],
+             "threads", "lattice", "h_coefficient", "flow_time",
+             # optional ablation axes (README.md, "Ablations")
+             "pair_loop", "simd", "skip_boundary_pairs", "gridder_a_variant", "initial_order",
+             "extra_loops"],
     "cellindex": ["cell_order", "particles"],
     "search": ["particles", "gridder", "cell_order", "reorder", "threads"],
 }

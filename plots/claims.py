@@ -444,6 +444,25 @@ def kgc_gain_exceeds_plain(med, c):
     return with_kgc - plain, note, {"gain_with_kgc": with_kgc, "gain_without": plain}
 
 
+# ------------------------------------- beyond the paper: loops per step (extra_loops)
+@claim("vlx_gain_grows_with_loops")
+def vlx_gain_grows_with_loops(med, c):
+    """The paper's conjecture that more loops per step favour Verlet lists:
+    the improvement of VL_X over CLL at n_s = 7 against k extra pair passes,
+    as the change from the smallest to the largest k of a fit a + b k."""
+    if "extra_loops" not in med:
+        raise NotMeasured("no run with an extra_loops axis")
+    n, note = _at(med, c)
+    rows = pick(med, particles=n, list_steps=7, kgc=0)
+    g = _gain_series(rows, {"list": "cll"}, {"list": "vlx"}, "extra_loops", "extra_loops")
+    _need_points(g, 3, "loop counts")
+    k = g.index.to_numpy(float)
+    slope = np.polyfit(k, g.to_numpy(float), 1)[0]
+    return (float(slope * (k.max() - k.min())),
+            f"{note}: fitted change of the VL_X improvement (a + b k) from k = {k.min():g} to {k.max():g} extra loops",
+            {f"gain_k{int(x)}": float(v) for x, v in g.items()})
+
+
 # ------------------------------------------------------------------ verdicts
 def validate_claim(c, where):
     """Every band two-sided, finite, reproduced inside partly, with a reason."""

@@ -186,7 +186,7 @@ def targets(results):
 def claim_record(exp, r):
     """The claims.json object of one evaluated claim."""
     rec = {k: r.get(k) for k in CLAIM_KEYS if k not in ("figure", "band")}
-    rec["figure"] = exp["figure"]
+    rec["figure"] = figure_of(exp)
     rec["band"] = {"reproduced": r["tolerance"]["reproduced"], "partly": r["tolerance"]["partly"]}
     rec["band_reason"] = r.get("band_reason", "")
     rec["experiments"] = r.get("experiments", [])
@@ -216,6 +216,12 @@ def claim_note(r):
     parts.append(f"reproduced if {fmt_interval(tol['reproduced'], r['unit'])}, partly if "
                  f"{fmt_interval(tol['partly'], r['unit'])} ({r.get('band_reason', '')})")
     return "; ".join(parts).replace("|", "/")
+
+
+def figure_of(exp):
+    """What a claim belongs to: the paper's figure, or for a study that draws
+    none (the ablations, run by `make ablations`) its experiment id."""
+    return exp["figure"] or exp["id"]
 
 
 def build(run_dir, exp_dir, resamples=None):
@@ -306,7 +312,7 @@ def build(run_dir, exp_dir, resamples=None):
     out += ["## Claims", "", "| Figure | Claim | Paper | Measured [95 % interval] | Verdict | Note |",
             "|---|---|---|---|---|---|"]
     for exp, r in results:
-        out.append(f"| {exp['figure']} | {r['text']} (`{r['id']}`) | {fmt(r['paper_value'], r['unit'])} "
+        out.append(f"| {figure_of(exp)} | {r['text']} (`{r['id']}`) | {fmt(r['paper_value'], r['unit'])} "
                    f"| {fmt_ci(r['value'], r['ci_low'], r['ci_high'], r['unit'])} | {r['verdict']} "
                    f"| {claim_note(r)} |")
     failed = errors(df)

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <string>
+#include <tuple>
 
 #include <nlohmann/json.hpp>
 
@@ -47,6 +48,41 @@ TEST(Config, DefaultsMatchDesignTable) {
   EXPECT_EQ(c.list_steps, 1);
   EXPECT_FALSE(c.kgc);
   EXPECT_FALSE(c.verify_lists);
+  // ablations: the defaults are the normal path
+  EXPECT_EQ(c.pair_loop, sphnl::PairLoopKind::gather);
+  EXPECT_TRUE(c.simd);
+  EXPECT_FALSE(c.skip_boundary_pairs);
+  EXPECT_EQ(c.gridder_a_variant, sphnl::SlidingVariant::occupied);
+  EXPECT_EQ(c.initial_order, sphnl::InitialOrder::generated);
+  EXPECT_EQ(c.extra_loops, 0);
+}
+
+TEST(Config, AblationKeysParseAndBadValuesNameTheAllowedOnes) {
+  json j = json::object();
+  for (const char* kv : {"pair_loop=direct", "simd=off", "skip_boundary_pairs=true", "gridder_a_variant=shift_all",
+                         "initial_order=shuffled", "extra_loops=3"})
+    sphnl::apply_override(j, kv);
+  const sphnl::RunConfig c = sphnl::config_from_json(j);
+  EXPECT_EQ(c.pair_loop, sphnl::PairLoopKind::direct);
+  EXPECT_FALSE(c.simd);
+  EXPECT_TRUE(c.skip_boundary_pairs);
+  EXPECT_EQ(c.gridder_a_variant, sphnl::SlidingVariant::shift_all);
+  EXPECT_EQ(c.initial_order, sphnl::InitialOrder::shuffled);
+  EXPECT_EQ(c.extra_loops, 3);
+  EXPECT_EQ(sphnl::config_from_json(sphnl::config_to_json(c)).extra_loops, 3);
+  for (const auto& [key, value, allowed] :
+       {std::tuple<std::string, json, std::string>{"pair_loop", "fast", "gather, direct"},
+        {"simd", true, "on, off"},
+        {"simd", "avx", "on, off"},
+        {"skip_boundary_pairs", "boundary", "true or false"},
+        {"gridder_a_variant", "paper", "occupied, shift_all"},
+        {"initial_order", "random", "generated, shuffled"},
+        {"extra_loops", 4, "[0, 3]"},
+        {"extra_loops", -1, "[0, 3]"}}) {
+    const std::string msg = error_of([&] { sphnl::config_from_json(json{{key, value}}); });
+    EXPECT_NE(msg.find("'" + key + "'"), std::string::npos) << key << ": " << msg;
+    EXPECT_NE(msg.find(allowed), std::string::npos) << key << ": " << msg;
+  }
 }
 
 TEST(Config, UnknownKeyIsNamedWithTheKnownKeys) {

@@ -31,26 +31,43 @@ TEST(Gridders, AllFourHoldTheSameCellsInTheSameOrder) {
   std::vector<std::uint32_t> keys(500);
   for (auto& k : keys) k = cell(rng);
   keys[3] = keys[77] = kNoCell;  // out particles are not gridded
-  GridderOptions opt;
-  opt.max_parts_in_cell = 64;
-  std::vector<std::vector<std::uint32_t>> perms;
-  for (GridderKind g : kGridders) {
-    auto gridder = make_gridder(g, opt);
-    gridder->build(keys, 40);
-    std::vector<std::uint32_t> buf(gridder->max_cell_count()), perm;
-    std::uint32_t max_count = 0;
-    for (std::uint32_t k = 0; k < 40; ++k) {
-      const std::uint32_t n = gridder->gather_cell(k, buf.data());
-      max_count = std::max(max_count, n);
-      for (std::uint32_t s = 0; s < n; ++s) EXPECT_EQ(keys[buf[s]], k) << to_string(g);
-      EXPECT_TRUE(std::is_sorted(buf.begin(), buf.begin() + n)) << to_string(g) << ": cell " << k;
-    }
-    EXPECT_EQ(max_count, gridder->max_cell_count()) << to_string(g);
-    gridder->cell_order_permutation(perm);
-    EXPECT_EQ(perm.size(), 498u) << to_string(g);
-    perms.push_back(perm);
+  // Both variants of gridder A (the paper's, and shift_all), keys in random
+  // order, in cell order and in reverse cell order; cell_members (the direct
+  // pair loop's view) must read what gather_cell copies.
+  std::vector<std::uint32_t> sorted_keys = keys, reversed_keys = keys;
+  std::sort(sorted_keys.begin(), sorted_keys.end());  // kNoCell sorts last
+  std::sort(reversed_keys.begin(), reversed_keys.end(), std::greater<>());
+  for (const auto* key_set : {&keys, &sorted_keys, &reversed_keys}) {
+    std::vector<std::vector<std::uint32_t>> perms;
+    std::vector<std::string> names;
+    for (GridderKind g : kGridders)
+      for (SlidingVariant a : {SlidingVariant::occupied, SlidingVariant::shift_all}) {
+        if (g != GridderKind::A && a == SlidingVariant::shift_all) continue;
+        GridderOptions opt;
+        opt.max_parts_in_cell = 64;
+        opt.sliding_variant = a;
+        const std::string name = std::string(to_string(g)) + (g == GridderKind::A ? std::string(" ") + to_string(a) : "");
+        auto gridder = make_gridder(g, opt);
+        gridder->build(*key_set, 40);
+        std::vector<std::uint32_t> buf(gridder->max_cell_count()), scratch(gridder->max_cell_count()), perm;
+        std::uint32_t max_count = 0;
+        for (std::uint32_t k = 0; k < 40; ++k) {
+          const std::uint32_t n = gridder->gather_cell(k, buf.data());
+          max_count = std::max(max_count, n);
+          for (std::uint32_t s = 0; s < n; ++s) EXPECT_EQ((*key_set)[buf[s]], k) << name;
+          EXPECT_TRUE(std::is_sorted(buf.begin(), buf.begin() + n)) << name << ": cell " << k;
+          const auto members = gridder->cell_members(k, scratch.data());
+          EXPECT_TRUE(std::equal(members.begin(), members.end(), buf.begin(), buf.begin() + n) && members.size() == n)
+              << name << ": cell_members of cell " << k;
+        }
+        EXPECT_EQ(max_count, gridder->max_cell_count()) << name;
+        gridder->cell_order_permutation(perm);
+        EXPECT_EQ(perm.size(), 498u) << name;
+        perms.push_back(perm);
+        names.push_back(name);
+      }
+    for (std::size_t g = 1; g < perms.size(); ++g) EXPECT_EQ(perms[g], perms[0]) << names[g];
   }
-  for (std::size_t g = 1; g < perms.size(); ++g) EXPECT_EQ(perms[g], perms[0]) << to_string(kGridders[g]);
 }
 
 TEST(Gridders, StaticMatrixOverflowStopsWithTheCellAndTheOption) {

@@ -188,7 +188,10 @@ json run_summary(const Simulation& sim, double initial_mass, double wall_total_s
                           {"skin_m", st.skin},
                           {"vl_misses", st.vl_misses},
                           {"verified_steps", st.verified_steps},
-                          {"kgc_fallbacks", st.kgc_fallbacks}};
+                          {"kgc_fallbacks", st.kgc_fallbacks},
+                          // extra_loops: passes run and the sum of their results (README.md, "Ablations")
+                          {"extra_loop_passes", st.extra_loop_passes},
+                          {"extra_loop_checksum", st.extra_loop_checksum}};
   s["git_revision"] = SPHNL_GIT_REVISION;
   s["build_type"] = SPHNL_BUILD_TYPE;
   return s;

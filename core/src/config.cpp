@@ -16,6 +16,10 @@ constexpr std::array kGridderNames{"A", "B", "C", "D"};
 constexpr std::array kOrderNames{"sort_x", "sort_xy", "sort_xyz", "hilbert"};
 constexpr std::array kListNames{"cll", "vlc", "vlx"};
 constexpr std::array kLatticeNames{"bcc", "cubic"};
+constexpr std::array kPairLoopNames{"gather", "direct"};
+constexpr std::array kSlidingNames{"occupied", "shift_all"};
+constexpr std::array kInitialOrderNames{"generated", "shuffled"};
+constexpr std::array kOnOffNames{"on", "off"};
 
 template <class Names>
 std::string join(const Names& names) {
@@ -123,6 +127,18 @@ const std::vector<Key>& key_table() {
        [](const RunConfig& c) { return json(c.kgc); }},
       {"verify_lists", [](RunConfig& c, const json& v) { c.verify_lists = get_bool("verify_lists", v); },
        [](const RunConfig& c) { return json(c.verify_lists); }},
+      {"pair_loop", [](RunConfig& c, const json& v) { c.pair_loop = get_enum<PairLoopKind>("pair_loop", v, kPairLoopNames); },
+       [](const RunConfig& c) { return json(to_string(c.pair_loop)); }},
+      {"simd", [](RunConfig& c, const json& v) { c.simd = get_enum<int>("simd", v, kOnOffNames) == 0; },
+       [](const RunConfig& c) { return json(c.simd ? "on" : "off"); }},
+      {"skip_boundary_pairs", [](RunConfig& c, const json& v) { c.skip_boundary_pairs = get_bool("skip_boundary_pairs", v); },
+       [](const RunConfig& c) { return json(c.skip_boundary_pairs); }},
+      {"gridder_a_variant", [](RunConfig& c, const json& v) { c.gridder_a_variant = get_enum<SlidingVariant>("gridder_a_variant", v, kSlidingNames); },
+       [](const RunConfig& c) { return json(to_string(c.gridder_a_variant)); }},
+      {"initial_order", [](RunConfig& c, const json& v) { c.initial_order = get_enum<InitialOrder>("initial_order", v, kInitialOrderNames); },
+       [](const RunConfig& c) { return json(to_string(c.initial_order)); }},
+      {"extra_loops", [](RunConfig& c, const json& v) { c.extra_loops = static_cast<int>(get_integer("extra_loops", v, 0, 3)); },
+       [](const RunConfig& c) { return json(c.extra_loops); }},
   };
   return table;
 }

@@ -45,6 +45,13 @@ const std::vector<Axis>& axes() {
       // simulated time of the developed flow the window starts from (s): picks
       // the snapshot, not a run setting
       {"flow_time", {"step"}, {}, positive_number},
+      // ablations (README.md, "Ablations"): optional, default the normal path
+      {"pair_loop", {"step"}, {}, {}},
+      {"simd", {"step"}, {}, {}},
+      {"skip_boundary_pairs", {"step"}, {}, {}},
+      {"gridder_a_variant", {"step"}, {}, {}},
+      {"initial_order", {"step"}, {}, {}},
+      {"extra_loops", {"step"}, {}, {}},
   };
   return table;
 }

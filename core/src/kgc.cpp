@@ -9,6 +9,12 @@ void clear_kgc_matrices(ParticleSet& ps) {
   for (auto& m : ps.kgc_m) std::fill(m.begin(), m.end(), 0.0);
 }
 
+double kgc_trace_sum(const ParticleSet& ps) {
+  double sum = 0;
+  for (std::size_t i = 0; i < ps.size(); ++i) sum += ps.kgc_m[0][i] + ps.kgc_m[3][i] + ps.kgc_m[5][i];
+  return sum;
+}
+
 std::size_t invert_kgc_matrices(ParticleSet& ps) {
   const std::size_t n = ps.size();
   std::size_t fallbacks = 0;

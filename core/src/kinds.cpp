@@ -16,4 +16,17 @@ const char* to_string(ListKind l) {
   return names[static_cast<int>(l)];
 }
 
+const char* to_string(PairLoopKind p) {
+  constexpr const char* names[] = {"gather", "direct"};
+  return names[static_cast<int>(p)];
+}
+const char* to_string(SlidingVariant v) {
+  constexpr const char* names[] = {"occupied", "shift_all"};
+  return names[static_cast<int>(v)];
+}
+const char* to_string(InitialOrder o) {
+  constexpr const char* names[] = {"generated", "shuffled"};
+  return names[static_cast<int>(o)];
+}
+
 }  // namespace sphnl

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numeric>
+#include <random>
 #include <stdexcept>
 #include <string>
 
@@ -34,6 +36,8 @@ RebuildSettings rebuild_settings(const RunConfig& c) {
   r.reorder = c.reorder;
   r.reorder_every = c.reorder_every;
   r.threads = c.threads;
+  r.build.simd = c.simd;
+  r.build.skip_boundary_pairs = c.skip_boundary_pairs;
   return r;
 }
 
@@ -57,10 +61,26 @@ void Simulation::init() {
     throw ConfigError("list = " + std::string(to_string(config_.list)) +
                       ": this case has a periodic y, which only the cell-linked list handles (its cell sweep "
                       "wraps across the seam; Verlet lists store pairs without the image shift); use list = cll");
+  if (config_.pair_loop == PairLoopKind::direct && config_.list != ListKind::cll)
+    throw ConfigError("pair_loop = direct applies to the cell-linked list (list = cll); a Verlet list's loop "
+                      "already reads the particles in place and its build uses the gather sweep; use pair_loop = gather");
+  if (config_.pair_loop == PairLoopKind::direct && config_.skip_boundary_pairs)
+    throw ConfigError("skip_boundary_pairs = true needs pair_loop = gather (it picks the fluid entries of the "
+                      "gathered cells); use one of the two");
+  if (config_.pair_loop == PairLoopKind::direct && case_.period_y > 0)
+    throw ConfigError("pair_loop = direct: this case has a periodic y, whose image shift needs the gathered "
+                      "copies of the cells; use pair_loop = gather");
+  pair_options_.loop = config_.pair_loop;
+  pair_options_.simd = config_.simd;
+  pair_options_.skip_boundary_pairs = config_.skip_boundary_pairs;
+  if (config_.initial_order == InitialOrder::shuffled) shuffle_memory_order();
   grid_ = make_particle_grid();
   force_ops_.assign(config_.threads, ForceOp<false>{&phys_, 0});
   force_ops_kgc_.assign(config_.threads, ForceOp<true>{&phys_, 0});
   kgc_ops_.assign(config_.threads, KgcMatrixOp{&phys_});
+  force_ops_scalar_.assign(config_.threads, ForceOp<false, false>{&phys_, 0});
+  force_ops_kgc_scalar_.assign(config_.threads, ForceOp<true, false>{&phys_, 0});
+  kgc_ops_scalar_.assign(config_.threads, KgcMatrixPass<false>{&phys_});
   if (config_.verify_lists && config_.list != ListKind::cll)
     verify_grid_ = make_particle_grid();
   update_derived(phys_, ps_, 0, ps_.size());
@@ -77,6 +97,7 @@ GridderOptions Simulation::gridder_options() const {
   options.dx = case_.dx;
   options.h = phys_.h();
   options.particles_per_dx3 = config_.lattice == Lattice::bcc ? 2.0 : 1.0;
+  options.sliding_variant = config_.gridder_a_variant;
   return options;
 }
 
@@ -104,6 +125,14 @@ std::uint64_t Simulation::count_list_misses() {
 }
 
 void Simulation::compute_forces() {
+  // One run-time choice per step: the vectorised or the scalar pair kernels.
+  if (config_.simd) compute_forces_with(force_ops_, force_ops_kgc_, kgc_ops_);
+  else compute_forces_with(force_ops_scalar_, force_ops_kgc_scalar_, kgc_ops_scalar_);
+}
+
+template <class ForcePlain, class ForceKgc, class KgcMatrix>
+void Simulation::compute_forces_with(std::vector<ForcePlain>& force_ops, std::vector<ForceKgc>& force_ops_kgc,
+                                     std::vector<KgcMatrix>& kgc_ops) {
   ps_.clear_accumulators();
   PairCounts counts;
   double mu = 0;
@@ -112,19 +141,50 @@ void Simulation::compute_forces() {
     // cells again; a Verlet list is walked again), L_a = M_a^-1, then the main
     // loop with corrected gradients.
     clear_kgc_matrices(ps_);
-    for_each_pair(kgc_ops_);
+    for_each_pair(kgc_ops);
     stats_.kgc_fallbacks += invert_kgc_matrices(ps_);
-    for (auto& op : force_ops_kgc_) op.max_mu = 0;
-    counts = for_each_pair(force_ops_kgc_);
-    for (const auto& op : force_ops_kgc_) mu = std::max(mu, op.max_mu);
+    for (auto& op : force_ops_kgc) op.max_mu = 0;
+    counts = for_each_pair(force_ops_kgc);
+    for (const auto& op : force_ops_kgc) mu = std::max(mu, op.max_mu);
   } else {
-    for (auto& op : force_ops_) op.max_mu = 0;
-    counts = for_each_pair(force_ops_);
-    for (const auto& op : force_ops_) mu = std::max(mu, op.max_mu);
+    for (auto& op : force_ops) op.max_mu = 0;
+    counts = for_each_pair(force_ops);
+    for (const auto& op : force_ops) mu = std::max(mu, op.max_mu);
   }
   max_mu_ = mu;
   stats_.candidates += counts.candidates;
   stats_.interactions += counts.interactions;
+  // extra_loops (README.md, "Ablations"): more passes over the same pairs
+  // doing real work whose result is kept but not applied, after the main loop
+  // so that L_a of KGC is already in use and the physics is unchanged.
+  for (int k = 0; k < config_.extra_loops; ++k) {
+    stats_.extra_loop_checksum += extra_loop_pass(kgc_ops);
+    ++stats_.extra_loop_passes;
+  }
+}
+
+template <class KgcMatrix>
+double Simulation::extra_loop_pass(std::vector<KgcMatrix>& kgc_ops) {
+  clear_kgc_matrices(ps_);
+  for_each_pair(kgc_ops);
+  return kgc_trace_sum(ps_);
+}
+
+double Simulation::extra_loop_pass() {
+  return config_.simd ? extra_loop_pass(kgc_ops_) : extra_loop_pass(kgc_ops_scalar_);
+}
+
+void Simulation::shuffle_memory_order() {
+  // A fixed seed and our own Fisher-Yates (std::shuffle's algorithm is the
+  // library's choice), so every build gives the same order.
+  const std::size_t n = ps_.size();
+  std::vector<std::uint32_t> order(n);
+  std::iota(order.begin(), order.end(), 0u);
+  std::mt19937_64 rng(kShuffleSeed);
+  for (std::size_t k = n; k > 1; --k) std::swap(order[k - 1], order[rng() % k]);
+  std::vector<double> scratch;
+  std::vector<std::uint32_t> scratch_u32;
+  ps_.permute(order, scratch, scratch_u32);
 }
 
 double Simulation::time_step() const {
@@ -227,6 +287,7 @@ void Simulation::restore(const ParticleSet& state, double time, long steps, std:
     dst->assign(src->begin(), src->begin() + static_cast<std::ptrdiff_t>(n));
   ps_.type.assign(state.type.begin(), state.type.end());
   ps_.id.assign(state.id.begin(), state.id.end());
+  if (config_.initial_order == InitialOrder::shuffled) shuffle_memory_order();
   update_derived(phys_, ps_, 0, n);
   double vmax2 = 0;
   for (std::size_t i = 0; i < n; ++i)

@@ -160,6 +160,13 @@ class TestExperiments(unittest.TestCase):
             self.assertLess(most, limit, size)
             self.assertLessEqual(least, most)
         self.assertGreater(run.snapshot_seconds(chosen, "default", nothing), 60)
+        # `make ablations` (not part of make reproduce) within the same limit
+        ablations = [e for i, e in self.exps.items() if i.startswith("ablation_") or i == "beyond_loops"]
+        self.assertEqual(len(ablations), 6)
+        self.assertTrue(all(e["figure"] is None for e in ablations), "ablations must stay out of make reproduce")
+        for size, limit in (("tiny", 60), ("default", 25 * 60)):
+            most = sum(run.most_seconds(e, size) for e in ablations) + run.snapshot_seconds(ablations, size, nothing)
+            self.assertLess(most, limit, size)
 
     def test_every_window_holds_whole_list_lifetimes(self):
         for exp in self.exps.values():
@@ -712,6 +719,30 @@ class TestClaims(unittest.TestCase):
                      for p, c in rows]
         self.assertEqual(C.evaluate(self.claim("neighbour_search_NlnN"), synthetic(quadratic))["verdict"],
                          "not reproduced")
+
+    def test_gain_grows_with_loops(self):
+        """vlx_gain_grows_with_loops: the fitted change of VL_X's improvement
+        from k = 0 to 3 extra loops; growing gains are reproduced, shrinking
+        ones are not, and a run without the axis is not measured."""
+        def loops_data(cll_per_loop):
+            rows = []
+            for k in range(4):
+                t_cll, t_vlx = 1.0 + cll_per_loop * k, 0.95 + 0.2 * k  # VL_X: 5 % faster at k = 0
+                for lst, t in (("cll", t_cll), ("vlx", t_vlx)):
+                    rows.append(({"particles": 31239, "gridder": "B", "reorder": 1, "list": lst, "list_steps": 7,
+                                  "extra_loops": k}, {"s_per_step": t}))
+            return synthetic(rows)
+        c = self.claim("vlx_gain_grows_with_loops")
+        r = C.evaluate(c, loops_data(cll_per_loop=0.3))  # CLL's extra loop costs more: the gain grows
+        self.assertEqual(r["verdict"], "reproduced", r)
+        gains = [100 * (1 + 0.3 * k - (0.95 + 0.2 * k)) / (1 + 0.3 * k) for k in range(4)]
+        self.assertAlmostEqual(r["related"]["gain_k3"]["value"], gains[3], places=6)
+        self.assertGreater(r["value"], 5)
+        r = C.evaluate(c, loops_data(cll_per_loop=0.15))  # CLL's extra loop costs less: the gain shrinks
+        self.assertEqual(r["verdict"], "not reproduced", r)
+        no_axis = synthetic([({"particles": 31239, "gridder": "B", "reorder": 1, "list": lst, "list_steps": 7},
+                              {"s_per_step": 1.0}) for lst in ("cll", "vlx")])
+        self.assertEqual(C.evaluate(c, no_axis)["verdict"], "not measured")
 
     def test_regression_flips_a_claim_end_to_end(self):
         """fake_bench --fake-regress: slowing VL_X turns its gain into a loss."""

@@ -50,6 +50,13 @@ struct RunConfig {
   double skin_factor = 0;      // nu of Delta h; 0 = paper default (1.2 VL_C, 1.0 VL_X)
   bool kgc = false;            // kernel gradient correction: the second loop per step
   bool verify_lists = false;   // check every step that no interacting pair is missing
+  // ablations (README.md, "Ablations"); the defaults are the normal path
+  PairLoopKind pair_loop = PairLoopKind::gather;  // cell-linked list: gather buffers or in place
+  bool simd = true;                 // false: the scalar distance filter and pair kernels
+  bool skip_boundary_pairs = false; // cell sweep: never distance-test boundary-boundary candidates
+  SlidingVariant gridder_a_variant = SlidingVariant::occupied;
+  InitialOrder initial_order = InitialOrder::generated;
+  int extra_loops = 0;              // extra pair passes per step (KGC matrix, computed, not applied)
 
   double effective_skin_factor() const {
     if (skin_factor > 0) return skin_factor;

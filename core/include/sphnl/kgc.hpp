@@ -17,7 +17,9 @@ namespace sphnl {
 /// Pair operation of the KGC pre-pass. With grad_a W_ab = F r_ab (r_ab = r_a - r_b)
 /// both contributions are symmetric: M_a += -V_b F r_ab (x) r_ab and
 /// M_b += -V_a F r_ab (x) r_ab (grad_b W_ba = -F r_ab, r_a - r_b = r_ab).
-struct KgcMatrixOp {
+/// `Simd` = false: the loop over the neighbours stays scalar (`simd=off`).
+template <bool Simd = true>
+struct KgcMatrixPass {
   static constexpr unsigned kFields = fields::position | fields::mass_rho | fields::kgc_m_out;
   const PhysicsParams* phys = nullptr;
 
@@ -27,7 +29,7 @@ struct KgcMatrixOp {
     const double xa = v.x[i], ya = v.y[i], za = v.z[i];
     const double va = v.mass[i] / v.rho[i];
     double mxx = 0, mxy = 0, mxz = 0, myy = 0, myz = 0, mzz = 0;
-#pragma omp simd reduction(+ : mxx, mxy, mxz, myy, myz, mzz)
+#pragma omp simd reduction(+ : mxx, mxy, mxz, myy, myz, mzz) if(simd : Simd)
     for (int p = 0; p < n; ++p) {
       const std::uint32_t j = js[p];
       const double dx = xa - v.x[j], dy = ya - v.y[j], dz = za - v.z[j];
@@ -45,7 +47,12 @@ struct KgcMatrixOp {
   }
 };
 
-static_assert(PairOperation<KgcMatrixOp>);
+using KgcMatrixOp = KgcMatrixPass<true>;
+static_assert(PairOperation<KgcMatrixOp> && PairOperation<KgcMatrixPass<false>>);
+
+/// Sum over the particles of the trace of M_a: the observable result of the
+/// extra pair passes of `extra_loops` (a checksum; M_a is not applied).
+double kgc_trace_sum(const ParticleSet& ps);
 
 /// Zeroes M_a of every particle before the pre-pass.
 void clear_kgc_matrices(ParticleSet& ps);

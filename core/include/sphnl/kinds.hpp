@@ -11,8 +11,27 @@ enum class GridderKind : std::uint8_t { A, B, C, D };                           
 enum class CellOrderKind : std::uint8_t { sort_x, sort_xy, sort_xyz, hilbert };  // §2.4
 enum class ListKind : std::uint8_t { cll, vlc, vlx };                            // §2.5
 
+// Ablations (README.md, "Ablations"): run-time switches that test one
+// explanation each of why sphnl's results differ from the paper's.
+/// How the cell-linked list reads a home cell and its 13 forward cells:
+/// `gather` copies them into a contiguous CellBuffer first; `direct` reads the
+/// particle arrays in place through the gridder's own structure, as the
+/// paper's code did.
+enum class PairLoopKind : std::uint8_t { gather, direct };
+/// Gridder A (§2.3, sliding dynamic vector): after an insertion, `occupied`
+/// re-adjusts CellsBegin only up to the last cell holding a particle so far
+/// (an insertion in cell order appends at O(1)); `shift_all` re-adjusts it for
+/// every later cell of the grid (O(cells) per insertion whatever the order).
+enum class SlidingVariant : std::uint8_t { occupied, shift_all };
+/// Memory order of the particles at t = 0 (and after a restore): as the case
+/// generator made them (nearly cell-ordered), or shuffled with a fixed seed.
+enum class InitialOrder : std::uint8_t { generated, shuffled };
+
 const char* to_string(GridderKind g);
 const char* to_string(CellOrderKind o);
 const char* to_string(ListKind l);
+const char* to_string(PairLoopKind p);
+const char* to_string(SlidingVariant v);
+const char* to_string(InitialOrder o);
 
 }  // namespace sphnl

@@ -17,7 +17,9 @@ namespace sphnl {
 
 /// Pair operation of the main loop. `Kgc` selects the corrected gradients
 /// L_a grad_a W_ab (Bonet & Lok 1999) in pressure, viscosity and continuity.
-template <bool Kgc>
+/// `Simd` = false keeps the compiler from vectorising the loop over the
+/// neighbours (the ablation `simd=off`, README.md); the arithmetic is the same.
+template <bool Kgc, bool Simd = true>
 struct ForceOp {
   static constexpr unsigned kFields = fields::position | fields::mass_rho | fields::force_in | fields::force_out |
                                      (Kgc ? fields::kgc_l : 0u);
@@ -38,7 +40,7 @@ struct ForceOp {
       for (int c = 0; c < 6; ++c) la[c] = v.kgc[c][i];
 
     double axa = 0, aya = 0, aza = 0, drhoa = 0, uxa = 0, uya = 0, uza = 0, mu_max = max_mu;
-#pragma omp simd reduction(+ : axa, aya, aza, drhoa, uxa, uya, uza) reduction(max : mu_max)
+#pragma omp simd reduction(+ : axa, aya, aza, drhoa, uxa, uya, uza) reduction(max : mu_max) if(simd : Simd)
     for (int p = 0; p < n; ++p) {
       const std::uint32_t j = js[p];
       const double dx = xa - v.x[j], dy = ya - v.y[j], dz = za - v.z[j];
@@ -89,6 +91,6 @@ struct ForceOp {
   }
 };
 
-static_assert(PairOperation<ForceOp<false>> && PairOperation<ForceOp<true>>);
+static_assert(PairOperation<ForceOp<false>> && PairOperation<ForceOp<true>> && PairOperation<ForceOp<false, false>>);
 
 }  // namespace sphnl

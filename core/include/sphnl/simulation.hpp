@@ -80,6 +80,13 @@ class Simulation {
   /// dh of VL_C / VL_X for a list that should live `list_steps` steps
   /// (paper §2.5): nu 2 Vmax n_s dt, with Vmax and dt of the last step.
   double list_skin() const { return policy_.skin(flow_state()); }
+  /// One pass of `extra_loops` over the pairs of the current neighbour
+  /// structures: M_a of KGC (KgcMatrixOp) into the particles' kgc_m, not
+  /// applied; returns the sum of the traces of M_a (the checksum that
+  /// NeighbourStats::extra_loop_checksum adds up). Public for its test.
+  double extra_loop_pass();
+  /// Seed of `initial_order=shuffled`.
+  static constexpr std::uint64_t kShuffleSeed = 20111;
 
  private:
   void init();
@@ -90,6 +97,13 @@ class Simulation {
   /// The flow as the rebuild policy sees it at the start of a step.
   FlowState flow_state() const;
   void compute_forces();
+  template <class ForcePlain, class ForceKgc, class KgcMatrix>
+  void compute_forces_with(std::vector<ForcePlain>& force_ops, std::vector<ForceKgc>& force_ops_kgc,
+                           std::vector<KgcMatrix>& kgc_ops);
+  template <class KgcMatrix>
+  double extra_loop_pass(std::vector<KgcMatrix>& kgc_ops);
+  /// initial_order=shuffled: permutes the particle arrays by a fixed random permutation.
+  void shuffle_memory_order();
   void update(double dt);
   double time_step() const;
 
@@ -106,6 +120,11 @@ class Simulation {
   std::vector<KgcMatrixOp> kgc_ops_;
   std::vector<ForceOp<false>> force_ops_;
   std::vector<ForceOp<true>> force_ops_kgc_;
+  // simd=off: the same operations with their neighbour loops kept scalar
+  std::vector<KgcMatrixPass<false>> kgc_ops_scalar_;
+  std::vector<ForceOp<false, false>> force_ops_scalar_;
+  std::vector<ForceOp<true, false>> force_ops_kgc_scalar_;
+  PairLoopOptions pair_options_;
   PhaseTimes times_;
   NeighbourStats stats_;
   double time_ = 0, dt_ = 0, max_speed_ = 0, max_mu_ = 0;
@@ -116,9 +135,9 @@ class Simulation {
 template <PairOperation Op>
 PairCounts Simulation::for_each_pair(std::vector<Op>& ops) {
   switch (config_.list) {
-    case ListKind::cll: return cll_.for_each_pair(*grid_, ps_, ops, phys_.kernel.support2);
+    case ListKind::cll: return cll_.for_each_pair(*grid_, ps_, ops, phys_.kernel.support2, pair_options_);
     case ListKind::vlc:
-    case ListKind::vlx: return verlet_.for_each_pair(ps_, ops, phys_.kernel.support2);
+    case ListKind::vlx: return verlet_.for_each_pair(ps_, ops, phys_.kernel.support2, pair_options_.simd);
   }
   throw ConfigError("unknown list kind");
 }

@@ -7,6 +7,7 @@
 #include "sphnl/gridders/linked_list.hpp"
 #include "sphnl/gridders/preconditioned_vector.hpp"
 #include "sphnl/gridders/sliding_vector.hpp"
+#include "sphnl/gridders/sliding_vector_shift_all.hpp"
 #include "sphnl/gridders/static_matrix.hpp"
 #include "sphnl/input_error.hpp"
 
@@ -31,7 +32,9 @@ int default_max_parts_in_cell(const GridderOptions& o) {
 }
 std::unique_ptr<Gridder> make_gridder(GridderKind kind, const GridderOptions& options) {
   switch (kind) {
-    case GridderKind::A: return std::make_unique<SlidingVector>();
+    case GridderKind::A:
+      if (options.sliding_variant == SlidingVariant::shift_all) return std::make_unique<SlidingVectorShiftAll>();
+      return std::make_unique<SlidingVector>();
     case GridderKind::B: return std::make_unique<PreconditionedVector>();
     case GridderKind::C: return std::make_unique<StaticMatrix>(options);
     case GridderKind::D: return std::make_unique<LinkedList>();

@@ -4,7 +4,7 @@
 
 namespace sphnl {
 
-void CellSweep::prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads) {
+void CellSweep::prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads, bool gather) {
   if (static_cast<int>(scratch_.size()) < threads) scratch_.resize(threads);
   const std::size_t capacity = 14 * static_cast<std::size_t>(gridder.max_cell_count()) + kFilterSlack;
   const unsigned outputs = mask & (fields::force_out | fields::kgc_m_out);
@@ -13,8 +13,8 @@ void CellSweep::prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, 
     if (s.cell_index.size() < capacity) {
       s.cell_index.resize(capacity);
       s.survivors.resize(capacity);
-      s.buffer.reserve(capacity);
     }
+    if (gather) s.buffer.reserve(capacity);
     s.target = ParticleView::of(ps);
     if (t > 0 && outputs) s.private_acc.attach(s.target, ps.size(), outputs);
   }
@@ -53,7 +53,7 @@ std::size_t CellSweep::bytes() const {
   // The thread split (thread_begin_, weight_) exists once, whatever the thread count.
   std::size_t b = thread_begin_.capacity() * sizeof(std::uint32_t) + weight_.capacity() * sizeof(double);
   for (const auto& s : scratch_)
-    b += s.buffer.bytes() + (s.cell_index.capacity() + s.survivors.capacity()) * sizeof(std::uint32_t) +
+    b += s.buffer.bytes() + (s.cell_index.capacity() + s.survivors.capacity() + s.fluid_slots.capacity()) * sizeof(std::uint32_t) +
          s.private_acc.bytes();
   return b;
 }

@@ -33,7 +33,7 @@ void RebuildPolicy::prepare(ParticleSet& ps, ParticleGrid& grid, VerletList& ver
     skin_ = skin(flow);
     const double cell = 2.0 * flow.h + skin_;  // 2H = 2h + dh
     grid.build(ps, cell, reorder_now(stats));
-    verlet.build(grid, ps, cell * cell, settings_.threads);
+    verlet.build(grid, ps, cell * cell, settings_.threads, settings_.build);
     if (settings_.list == ListKind::vlx) {  // positions after any reordering: indices match the list's
       x_build_.assign(ps.x.begin(), ps.x.end());
       y_build_.assign(ps.y.begin(), ps.y.end());

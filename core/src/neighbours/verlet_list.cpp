@@ -14,14 +14,8 @@ std::uint32_t* VerletList::IndexBuffer::room(std::size_t more) {
   return data.data() + size;
 }
 
-void VerletList::build(const ParticleGrid& pg, ParticleSet& ps, double list_radius2, int threads) {
-  const std::size_t n = ps.size();
-  if (static_cast<int>(chunks_.size()) < threads) chunks_.resize(threads);
-  for (auto& c : chunks_) {
-    c.neighbours.size = 0;
-    c.rows.clear();
-    c.counts.clear();
-  }
+template <bool Simd, bool SkipBoundaryPairs>
+void VerletList::build_sweep(const ParticleGrid& pg, ParticleSet& ps, double list_radius2, int threads) {
   // One sweep: each home particle's candidates with r < 2H (coincident pairs
   // kept) are appended to its thread's chunk as one row.
   sweep_.run(pg.grid(), pg.order(), pg.gridder(), ps, fields::position, threads,
@@ -30,15 +24,37 @@ void VerletList::build(const ParticleGrid& pg, ParticleSet& ps, double list_radi
                const ParticleView v = s.buffer.view();
                const std::uint32_t total = s.buffer.size();
                const std::uint32_t* global = s.buffer.index();
+               HomeCandidates<Simd, SkipBoundaryPairs> home(v, total, s.fluid_slots);
+               std::uint64_t tested = 0;
                for (std::uint32_t i = 0; i < n_home; ++i) {
                  std::uint32_t* out = c.neighbours.room(total - i - 1 + kFilterSlack);
-                 const int m = filter_range(v, i, i + 1, total, list_radius2, out, -1.0);
+                 const int m = home.filter(i, list_radius2, out, tested, -1.0);
                  for (int k = 0; k < m; ++k) out[k] = global[out[k]];
                  c.neighbours.size += static_cast<std::size_t>(m);
                  c.rows.push_back(global[i]);
                  c.counts.push_back(static_cast<std::uint32_t>(m));
                }
              });
+}
+
+void VerletList::build(const ParticleGrid& pg, ParticleSet& ps, double list_radius2, int threads,
+                       const PairLoopOptions& options) {
+  const std::size_t n = ps.size();
+  if (static_cast<int>(chunks_.size()) < threads) chunks_.resize(threads);
+  for (auto& c : chunks_) {
+    c.neighbours.size = 0;
+    c.rows.clear();
+    c.counts.clear();
+  }
+  // The build sweep always gathers (pair_loop applies to the cell-linked
+  // list's pair pass; the list's own loop reads the particles in place).
+  if (options.skip_boundary_pairs) {
+    if (options.simd) build_sweep<true, true>(pg, ps, list_radius2, threads);
+    else build_sweep<false, true>(pg, ps, list_radius2, threads);
+  } else {
+    if (options.simd) build_sweep<true, false>(pg, ps, list_radius2, threads);
+    else build_sweep<false, false>(pg, ps, list_radius2, threads);
+  }
   // Rows in visit order: threads swept contiguous ranges of cells, so their
   // chunks concatenate in thread order. Particles not gridded (out) get empty rows.
   std::size_t pairs = 0;

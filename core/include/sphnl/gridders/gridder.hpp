@@ -23,6 +23,14 @@ class Gridder {
   /// Writes the particle indices of cell `key` to `out` (room for
   /// max_cell_count() entries) and returns how many.
   virtual std::uint32_t gather_cell(std::uint32_t key, std::uint32_t* out) const = 0;
+  /// The particle indices of cell `key` read in place from the gridder's own
+  /// structure where it stores them contiguously (A, B: a CellsBegin range of
+  /// PartsSorted; C: a PartsInCell row); gridder D walks next[] into
+  /// `scratch` (room for max_cell_count() entries). Increasing indices. The
+  /// cell-linked list's `pair_loop=direct` reads cells through this.
+  virtual std::span<const std::uint32_t> cell_members(std::uint32_t key, std::uint32_t* scratch) const {
+    return {scratch, gather_cell(key, scratch)};
+  }
   /// Largest number of particles in one cell after the last build.
   std::uint32_t max_cell_count() const { return max_cell_count_; }
   /// Every gridded particle, in cell-key order (the reordering permutation).
@@ -45,6 +53,7 @@ struct GridderOptions {
   // (dx = 0: unknown; C then sizes its rows from the first build).
   double dx = 0, h = 0;
   double particles_per_dx3 = 1;  // lattice density: 2 for bcc, 1 for simple cubic
+  SlidingVariant sliding_variant = SlidingVariant::occupied;  // gridder A only
 };
 
 /// MaxPartsInCell when the config leaves it 0: the fullest a cell of side 2.2h

@@ -39,6 +39,10 @@ class PreconditionedVector final : public Gridder {
     return e - b;
   }
 
+  std::span<const std::uint32_t> cell_members(std::uint32_t key, std::uint32_t*) const override {
+    return {parts_sorted_.data() + cells_begin_[key], cells_begin_[key + 1] - cells_begin_[key]};
+  }
+
   void cell_order_permutation(std::vector<std::uint32_t>& order) const override {
     order.assign(parts_sorted_.begin(), parts_sorted_.end());
   }

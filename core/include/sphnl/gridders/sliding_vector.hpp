@@ -1,70 +1,56 @@
 #pragma once
 // Gridder A, "sliding dynamic vector" (paper §2.3, Fig. 2): particles are
 // inserted one by one into PartsSorted at the end of their cell, displacing
-// every particle stored after that point by one slot, and CellsBegin of every
-// later cell is moved up by one. The cost of the displacements (O(N) per
-// insertion when the particles arrive in scattered order; nothing to shift
-// when they arrive already in cell order, i.e. after reordering) is what
-// Figs. 6 and 8 measure: it is deliberately not replaced by a counting sort.
-#include <algorithm>
+// the particles stored after that point by one slot, and CellsBegin is
+// re-adjusted to point at the beginning of each cell. PartsSorted grows like
+// a dynamic vector: CellsBegin is kept only up to the last cell that holds a
+// particle so far (every cell after it starts at the end of the vector), so
+// an insertion costs the particles it displaces plus the occupied cells after
+// its own. Particles arriving in cell order (after reordering, §2.4) are
+// appended at O(1) each; particles arriving in scattered order cost O(N) per
+// insertion. That cost is what Figs. 6 and 8 measure: it is deliberately not
+// replaced by a counting sort (that is gridder B). The variant that
+// re-adjusts CellsBegin of every later cell of the grid on every insertion is
+// SlidingVectorShiftAll (`gridder_a_variant=shift_all`).
 #include <cstring>
 
-#include "sphnl/gridders/gridder.hpp"
+#include "sphnl/gridders/sliding_vector_base.hpp"
 #include "sphnl/orderings/cell_order.hpp"
 
 namespace sphnl {
 
-class SlidingVector final : public Gridder {
+class SlidingVector final : public SlidingVectorBase {
  public:
-  const char* name() const override { return "A"; }
-
   void build(std::span<const std::uint32_t> cell_key, std::uint32_t num_keys) override {
     num_keys_ = num_keys;
     const std::size_t n = cell_key.size();
-    cells_begin_.assign(std::size_t{num_keys} + 1, 0);
+    cells_begin_.resize(std::size_t{num_keys} + 1);
     parts_sorted_.resize(n);  // capacity for every particle; `stored` is the used length
     std::uint32_t* parts = parts_sorted_.data();
     std::uint32_t* begin = cells_begin_.data();
     std::uint32_t stored = 0;
+    // Cells [0, occupied) have their CellsBegin; begin[occupied] = stored and
+    // every cell after it is (still) empty at the end of the vector.
+    std::uint32_t occupied = 0;
+    begin[0] = 0;
     for (std::size_t i = 0; i < n; ++i) {
       const std::uint32_t c = cell_key[i];
       if (c == kNoCell) continue;
+      if (c >= occupied) {  // the vector grows: empty cells up to c start at its end
+        for (std::uint32_t k = occupied + 1; k <= c + 1; ++k) begin[k] = stored;
+        occupied = c + 1;
+      }
       // Insert at the end of cell c: slide PartsSorted[at, stored) one slot up...
       const std::uint32_t at = begin[c + 1];
       std::memmove(parts + at + 1, parts + at, std::size_t{stored - at} * sizeof(std::uint32_t));
       parts[at] = static_cast<std::uint32_t>(i);
       ++stored;
-      // ...and re-adjust CellsBegin of every later cell.
-      for (std::uint32_t k = c + 1; k <= num_keys; ++k) ++begin[k];
+      // ...and re-adjust CellsBegin of the later occupied cells.
+      for (std::uint32_t k = c + 1; k <= occupied; ++k) ++begin[k];
     }
-    std::uint32_t max_count = 0;
-    for (std::uint32_t k = 0; k < num_keys; ++k) max_count = std::max(max_count, begin[k + 1] - begin[k]);
-    max_cell_count_ = max_count;
-    stored_ = stored;
+    for (std::uint32_t k = occupied + 1; k <= num_keys; ++k) begin[k] = stored;
+    finish_build(stored);
   }
-
-  std::uint32_t gather_cell(std::uint32_t key, std::uint32_t* out) const override {
-    const std::uint32_t b = cells_begin_[key], e = cells_begin_[key + 1];
-    std::copy(parts_sorted_.begin() + b, parts_sorted_.begin() + e, out);
-    return e - b;
-  }
-
-  void cell_order_permutation(std::vector<std::uint32_t>& order) const override {
-    order.assign(parts_sorted_.begin(), parts_sorted_.begin() + stored_);
-  }
-
-  void renumber(std::span<const std::uint32_t> new_index_of_old) override {
-    for (std::uint32_t k = 0; k < stored_; ++k) parts_sorted_[k] = new_index_of_old[parts_sorted_[k]];
-  }
-
-  std::size_t bytes() const override {
-    return (cells_begin_.capacity() + parts_sorted_.capacity()) * sizeof(std::uint32_t);
-  }
-
- private:
-  std::vector<std::uint32_t> cells_begin_;   // CellsBegin: first slot of each cell, plus the end
-  std::vector<std::uint32_t> parts_sorted_;  // PartsSorted: particle indices grouped by cell
-  std::uint32_t stored_ = 0;                 // gridded particles (out ones are not stored)
 };
 
 }  // namespace sphnl

@@ -31,6 +31,10 @@ class StaticMatrix final : public Gridder {
     return count;
   }
 
+  std::span<const std::uint32_t> cell_members(std::uint32_t key, std::uint32_t*) const override {
+    return {parts_in_cell_.data() + std::size_t{key} * max_parts_, n_parts_in_cell_[key]};
+  }
+
   void cell_order_permutation(std::vector<std::uint32_t>& order) const override {
     order.resize(0);
     for (std::uint32_t k = 0; k < num_keys_; ++k) {

@@ -2,11 +2,16 @@
 // Cell-linked list (CLL, paper §2.5): no list at all. Every step, every home
 // cell is swept with its forward neighbour cells, and the candidates are
 // distance-tested right before the pair kernel runs on the survivors.
+// How the cells are read is an ablation (README.md, "Ablations"), decided
+// once per pass: gathered into a CellBuffer (default) or read in place through
+// the gridder (`pair_loop=direct`); the filter and the kernel are the same.
 #include <vector>
 
 #include "sphnl/neighbours/cell_sweep.hpp"
+#include "sphnl/neighbours/home_candidates.hpp"
 #include "sphnl/neighbours/pair_counts.hpp"
 #include "sphnl/neighbours/pair_filter.hpp"
+#include "sphnl/neighbours/pair_loop_options.hpp"
 #include "sphnl/neighbours/pair_operation.hpp"
 #include "sphnl/neighbours/particle_grid.hpp"
 
@@ -16,22 +21,21 @@ class CellLinkedList {
  public:
   /// Runs ops[thread].interact on every pair with r^2 < support2 (once per pair).
   template <PairOperation Op>
-  PairCounts for_each_pair(const ParticleGrid& pg, ParticleSet& ps, std::vector<Op>& ops, double support2) {
-    const int threads = static_cast<int>(ops.size());
-    counts_.assign(threads, PairCounts{});
-    sweep_.run(pg.grid(), pg.order(), pg.gridder(), ps, Op::kFields, threads,
-               [&](int t, CellSweep::Scratch& s, std::uint32_t n_home) {
-                 const ParticleView v = s.buffer.view();
-                 const std::uint32_t total = s.buffer.size();
-                 std::uint32_t* survivors = s.survivors.data();
-                 PairCounts& c = counts_[t];
-                 for (std::uint32_t i = 0; i < n_home; ++i) {
-                   const int m = filter_range(v, i, i + 1, total, support2, survivors);
-                   ops[t].interact(v, i, survivors, m);
-                   c.candidates += total - i - 1;
-                   c.interactions += static_cast<std::uint64_t>(m);
-                 }
-               });
+  PairCounts for_each_pair(const ParticleGrid& pg, ParticleSet& ps, std::vector<Op>& ops, double support2,
+                           const PairLoopOptions& options = {}) {
+    counts_.assign(ops.size(), PairCounts{});
+    if (options.loop == PairLoopKind::direct) {
+      if (options.skip_boundary_pairs)
+        throw std::logic_error("skip_boundary_pairs needs the gather loop (pair_loop=gather)");
+      if (options.simd) direct<true>(pg, ps, ops, support2);
+      else direct<false>(pg, ps, ops, support2);
+    } else if (options.skip_boundary_pairs) {
+      if (options.simd) gathered<true, true>(pg, ps, ops, support2);
+      else gathered<false, true>(pg, ps, ops, support2);
+    } else {
+      if (options.simd) gathered<true, false>(pg, ps, ops, support2);
+      else gathered<false, false>(pg, ps, ops, support2);
+    }
     PairCounts sum;
     for (const auto& c : counts_) sum += c;
     return sum;
@@ -40,6 +44,57 @@ class CellLinkedList {
   std::size_t scratch_bytes() const { return sweep_.bytes(); }
 
  private:
+  template <bool Simd, bool SkipBoundaryPairs, PairOperation Op>
+  void gathered(const ParticleGrid& pg, ParticleSet& ps, std::vector<Op>& ops, double support2) {
+    sweep_.run(pg.grid(), pg.order(), pg.gridder(), ps, Op::kFields, static_cast<int>(ops.size()),
+               [&](int t, CellSweep::Scratch& s, std::uint32_t n_home) {
+                 const ParticleView v = s.buffer.view();
+                 HomeCandidates<Simd, SkipBoundaryPairs> home(v, s.buffer.size(), s.fluid_slots);
+                 std::uint32_t* survivors = s.survivors.data();
+                 PairCounts& c = counts_[t];
+                 for (std::uint32_t i = 0; i < n_home; ++i) {
+                   const int m = home.filter(i, support2, survivors, c.candidates);
+                   ops[t].interact(v, i, survivors, m);
+                   c.interactions += static_cast<std::uint64_t>(m);
+                 }
+               });
+  }
+
+  /// Candidates of one cell read in place: a contiguous index range (B and A
+  /// after reordering: cells are ranges of the reordered arrays) takes the
+  /// range filter, anything else the list filter; both drop boundary pairs.
+  template <bool Simd>
+  static int filter_cell(const ParticleView& v, std::uint32_t i, std::span<const std::uint32_t> cell, double support2,
+                         std::uint32_t* out) {
+    if (cell.empty()) return 0;
+    if (cell.back() - cell.front() == cell.size() - 1)  // increasing indices: contiguous
+      return filter_range<Simd>(v, i, cell.front(), cell.back() + 1, support2, out);
+    return filter_list<Simd, true>(v, i, cell.data(), static_cast<int>(cell.size()), support2, out);
+  }
+
+  template <bool Simd, PairOperation Op>
+  void direct(const ParticleGrid& pg, ParticleSet& ps, std::vector<Op>& ops, double support2) {
+    sweep_.run_direct(pg.grid(), pg.order(), pg.gridder(), ps, Op::kFields, static_cast<int>(ops.size()),
+                      [&](int t, CellSweep::Scratch& s, std::span<const std::uint32_t> home,
+                          const CellSweep::ForwardCells& forward) {
+                        const ParticleView& v = s.target;
+                        std::uint32_t* survivors = s.survivors.data();
+                        PairCounts& c = counts_[t];
+                        for (std::size_t a = 0; a < home.size(); ++a) {
+                          const std::uint32_t i = home[a];
+                          int m = filter_cell<Simd>(v, i, home.subspan(a + 1), support2, survivors);
+                          std::uint64_t tested = home.size() - a - 1;
+                          for (int k = 0; k < forward.count; ++k) {
+                            m += filter_cell<Simd>(v, i, forward.cells[k], support2, survivors + m);
+                            tested += forward.cells[k].size();
+                          }
+                          ops[t].interact(v, i, survivors, m);
+                          c.candidates += tested;
+                          c.interactions += static_cast<std::uint64_t>(m);
+                        }
+                      });
+  }
+
   CellSweep sweep_;
   std::vector<PairCounts> counts_;
 };

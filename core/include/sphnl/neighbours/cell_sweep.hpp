@@ -15,6 +15,8 @@
 
 #include <array>
 #include <cstdint>
+#include <span>
+#include <stdexcept>
 #include <vector>
 
 #include "sphnl/grid.hpp"
@@ -36,6 +38,7 @@ class CellSweep {
     CellBuffer buffer;
     std::vector<std::uint32_t> cell_index;
     std::vector<std::uint32_t> survivors;
+    std::vector<std::uint32_t> fluid_slots;  // skip_boundary_pairs: fluid entries of the buffer
     ThreadAccumulators private_acc;  // threads > 0
     ParticleView target;
   };
@@ -45,35 +48,59 @@ class CellSweep {
   template <class Visit>
   void run(const CellGrid& grid, const CellOrder& order, const Gridder& gridder, ParticleSet& ps, unsigned mask,
            int threads, Visit&& visit) {
-    prepare(gridder, ps, mask, threads);
-    split_keys(order, gridder, ps, threads);
-    const std::uint64_t* coords = order.key_coords().data();
     const unsigned outputs = mask & (fields::force_out | fields::kgc_m_out);
-#pragma omp parallel num_threads(threads)
-    {
-      const int t = omp_get_thread_num();
-      Scratch& s = scratch_[t];
-      std::uint32_t* idx = s.cell_index.data();
-      for (std::uint32_t key = thread_begin_[t]; key < thread_begin_[t + 1]; ++key) {
-        const std::uint64_t c = coords[key];
-        if (c == CellOrder::kNoCellCoords) continue;
-        const std::uint32_t n_home = gridder.gather_cell(key, idx);
-        if (n_home == 0) continue;
-        std::uint32_t total = n_home;
-        int n_seam = 0;  // neighbour cells across a periodic seam: gathered range and y shift
-        std::array<SeamCell, kHalfStencil.size()> seam;
-        for_each_stencil_cell(grid, order, CellOrder::unpack_coords(c), kHalfStencil, [&](std::uint32_t k, double shift) {
-          const std::uint32_t begin = total;
-          total += gridder.gather_cell(k, idx + total);
-          if (shift != 0 && total > begin) seam[n_seam++] = {begin, total, shift};
-        });
-        s.buffer.gather(ps, idx, total, mask);
-        for (int k = 0; k < n_seam; ++k) s.buffer.shift_y(seam[k].begin, seam[k].end, seam[k].shift);
-        visit(t, s, n_home);
-        if (outputs) s.buffer.scatter_add(s.target, outputs);
-      }
-    }
-    if (outputs) reduce(ps, outputs, threads);
+    sweep(order, gridder, ps, mask, threads, /*gather=*/true,
+          [&](int t, Scratch& s, std::uint32_t key, CellOrder::Coords home) {
+            std::uint32_t* idx = s.cell_index.data();
+            const std::uint32_t n_home = gridder.gather_cell(key, idx);
+            if (n_home == 0) return;
+            std::uint32_t total = n_home;
+            int n_seam = 0;  // neighbour cells across a periodic seam: gathered range and y shift
+            std::array<SeamCell, kHalfStencil.size()> seam;
+            for_each_stencil_cell(grid, order, home, kHalfStencil, [&](std::uint32_t k, double shift) {
+              const std::uint32_t begin = total;
+              total += gridder.gather_cell(k, idx + total);
+              if (shift != 0 && total > begin) seam[n_seam++] = {begin, total, shift};
+            });
+            s.buffer.gather(ps, idx, total, mask);
+            for (int k = 0; k < n_seam; ++k) s.buffer.shift_y(seam[k].begin, seam[k].end, seam[k].shift);
+            visit(t, s, n_home);
+            if (outputs) s.buffer.scatter_add(s.target, outputs);
+          });
+  }
+
+  /// The 13 forward neighbour cells of a home cell, read in place.
+  struct ForwardCells {
+    std::array<std::span<const std::uint32_t>, kHalfStencil.size()> cells;
+    int count = 0;
+  };
+
+  /// `pair_loop=direct` (README.md, "Ablations"): no gather. Runs
+  /// `visit(thread, scratch, home, forward)` for every non-empty home cell,
+  /// with the particle indices of the home cell and of its forward cells as
+  /// the gridder stores them (Gridder::cell_members), so the visitor reads the
+  /// particle arrays in place, as the paper's code did. scratch.target views
+  /// the particles, its accumulators private for threads > 0. Not for a
+  /// periodic grid (no image shift without a copy).
+  template <class Visit>
+  void run_direct(const CellGrid& grid, const CellOrder& order, const Gridder& gridder, ParticleSet& ps,
+                  unsigned mask, int threads, Visit&& visit) {
+    if (grid.period_y > 0) throw std::logic_error("CellSweep::run_direct: a periodic grid needs the gather sweep");
+    sweep(order, gridder, ps, mask, threads, /*gather=*/false,
+          [&](int t, Scratch& s, std::uint32_t key, CellOrder::Coords home_coords) {
+            std::uint32_t* idx = s.cell_index.data();  // gridder D writes its walks here
+            const std::span<const std::uint32_t> home = gridder.cell_members(key, idx);
+            if (home.empty()) return;
+            std::uint32_t used = home.data() == idx ? static_cast<std::uint32_t>(home.size()) : 0;
+            ForwardCells forward;
+            for_each_stencil_cell(grid, order, home_coords, kHalfStencil, [&](std::uint32_t k, double) {
+              const std::span<const std::uint32_t> cell = gridder.cell_members(k, idx + used);
+              if (cell.empty()) return;
+              if (cell.data() == idx + used) used += static_cast<std::uint32_t>(cell.size());
+              forward.cells[forward.count++] = cell;
+            });
+            visit(t, s, home, forward);
+          });
   }
 
   std::size_t bytes() const;
@@ -83,7 +110,29 @@ class CellSweep {
     std::uint32_t begin, end;
     double shift;
   };
-  void prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads);
+  /// Prepares the threads' scratch, splits the keys between the threads,
+  /// calls home(thread, scratch, key, coords) for every key of a real cell in
+  /// each thread's range, then sums the private accumulators.
+  template <class Home>
+  void sweep(const CellOrder& order, const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads, bool gather,
+             Home&& home) {
+    prepare(gridder, ps, mask, threads, gather);
+    split_keys(order, gridder, ps, threads);
+    const std::uint64_t* coords = order.key_coords().data();
+#pragma omp parallel num_threads(threads)
+    {
+      const int t = omp_get_thread_num();
+      Scratch& s = scratch_[t];
+      for (std::uint32_t key = thread_begin_[t]; key < thread_begin_[t + 1]; ++key) {
+        const std::uint64_t c = coords[key];
+        if (c != CellOrder::kNoCellCoords) home(t, s, key, CellOrder::unpack_coords(c));
+      }
+    }
+    const unsigned outputs = mask & (fields::force_out | fields::kgc_m_out);
+    if (outputs) reduce(ps, outputs, threads);
+  }
+  /// gather = false (run_direct): no CellBuffer is allocated.
+  void prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads, bool gather = true);
   /// Fills thread_begin_: thread t sweeps keys [thread_begin_[t], thread_begin_[t+1]).
   void split_keys(const CellOrder& order, const Gridder& gridder, const ParticleSet& ps, int threads);
   std::vector<std::uint32_t> thread_begin_;

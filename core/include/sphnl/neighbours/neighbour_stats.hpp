@@ -22,6 +22,10 @@ struct NeighbourStats {
   std::uint64_t vl_misses = 0;          // pairs with r < 2h missing from the list (verify_lists only)
   std::uint64_t verified_steps = 0;     // steps checked by verify_lists
   std::uint64_t kgc_fallbacks = 0;      // fluid particles whose L_a fell back to I (summed over steps)
+  // extra_loops (README.md, "Ablations"): the extra pair passes run and the
+  // sum over them of sum_a trace(M_a) (their result, kept so it is observable)
+  std::uint64_t extra_loop_passes = 0;
+  double extra_loop_checksum = 0;
   /// Mean steps per list: lifetimes of the lists built (CLL: 1).
   double mean_steps_per_list() const {
     return builds ? static_cast<double>(list_steps ? list_steps : builds) / static_cast<double>(builds) : 0.0;

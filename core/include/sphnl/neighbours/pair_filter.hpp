@@ -17,6 +17,8 @@
 // from a table; elsewhere a branch-free scalar loop does the same. Every path
 // computes r^2 as distance2() does. `out` needs kFilterSlack entries of room
 // beyond the survivors.
+// filter_range and filter_list take `Simd` (template): false runs the scalar
+// loop alone, whatever the build has (the ablation `simd=off`, README.md).
 #include <array>
 #include <bit>
 #include <cstdint>
@@ -112,19 +114,21 @@ inline void store_compressed(std::uint32_t* out, __m256i ids, unsigned m) {
 /// Candidates j0..j1-1 (contiguous) of particle i; writes the survivors to `out`.
 /// `min_r2` < 0 keeps coincident pairs (a Verlet list stores them: they may
 /// separate during the life of the list).
+template <bool Simd = true>
 inline int filter_range(const ParticleView& v, std::uint32_t i, std::uint32_t j0, std::uint32_t j1, double support2,
                         std::uint32_t* __restrict out, double min_r2 = CubicSpline::kMinR2) {
   const double xi = v.x[i], yi = v.y[i], zi = v.z[i], fi = v.is_fluid[i];
   int n = 0;
   std::uint32_t j = j0;
 #if defined(SPHNL_FILTER_SIMD)
-  const simd::Vd vx = simd::splat(xi), vy = simd::splat(yi), vz = simd::splat(zi);
-  const simd::Vd vs = simd::splat(support2), vmin = simd::splat(min_r2), vf = simd::splat(fi), zero = simd::splat(0.0);
-  __m256i idx = simd::iota8(j0);
-  const __m256i eight = _mm256_set1_epi32(8);
+  [[maybe_unused]] const simd::Vd vx = simd::splat(xi), vy = simd::splat(yi), vz = simd::splat(zi);
+  [[maybe_unused]] const simd::Vd vs = simd::splat(support2), vmin = simd::splat(min_r2), vf = simd::splat(fi),
+                                  zero = simd::splat(0.0);
+  [[maybe_unused]] __m256i idx = simd::iota8(j0);
+  [[maybe_unused]] const __m256i eight = _mm256_set1_epi32(8);
 #endif
 #if defined(SPHNL_FILTER_AVX512)
-  for (; j + 8 <= j1; j += 8) {
+  if constexpr (Simd) for (; j + 8 <= j1; j += 8) {
     const __m512d r2 = simd::distance2(vx, vy, vz, _mm512_loadu_pd(v.x + j), _mm512_loadu_pd(v.y + j),
                                        _mm512_loadu_pd(v.z + j));
     const __m512d fluid = _mm512_add_pd(vf, _mm512_loadu_pd(v.is_fluid + j));
@@ -135,7 +139,7 @@ inline int filter_range(const ParticleView& v, std::uint32_t i, std::uint32_t j0
     idx = _mm256_add_epi32(idx, eight);
   }
 #elif defined(SPHNL_FILTER_AVX2)
-  for (; j + 8 <= j1; j += 8) {
+  if constexpr (Simd) for (; j + 8 <= j1; j += 8) {
     unsigned keep = 0;
     for (unsigned half = 0; half < 2; ++half) {
       const std::uint32_t k = j + 4 * half;
@@ -160,34 +164,44 @@ inline int filter_range(const ParticleView& v, std::uint32_t i, std::uint32_t j0
   return n;
 }
 
-/// Candidates given as a list (Verlet lists); writes the survivors to `out`.
-/// The list holds no boundary-boundary pair, so only the distance is tested.
+/// Candidates given as a list (Verlet lists, `pair_loop=direct`); writes the
+/// survivors to `out`. A Verlet list holds no boundary-boundary pair, so by
+/// default only the distance is tested; `DropBoundaryPairs` also drops them,
+/// as filter_range does (candidates read in place through a gridder).
+/// `min_r2` as in filter_range.
+template <bool Simd = true, bool DropBoundaryPairs = false>
 inline int filter_list(const ParticleView& v, std::uint32_t i, const std::uint32_t* __restrict candidates, int count,
-                       double support2, std::uint32_t* __restrict out) {
+                       double support2, std::uint32_t* __restrict out, double min_r2 = CubicSpline::kMinR2) {
   const double xi = v.x[i], yi = v.y[i], zi = v.z[i];
+  [[maybe_unused]] const double fi = v.is_fluid[i];
   int n = 0;
   int k = 0;
 #if defined(SPHNL_FILTER_SIMD)
-  const simd::Vd vx = simd::splat(xi), vy = simd::splat(yi), vz = simd::splat(zi);
-  const simd::Vd vs = simd::splat(support2), vmin = simd::splat(CubicSpline::kMinR2);
+  [[maybe_unused]] const simd::Vd vx = simd::splat(xi), vy = simd::splat(yi), vz = simd::splat(zi);
+  [[maybe_unused]] const simd::Vd vs = simd::splat(support2), vmin = simd::splat(min_r2);
+  [[maybe_unused]] const simd::Vd vf = simd::splat(fi), zero = simd::splat(0.0);
 #endif
 #if defined(SPHNL_FILTER_AVX512)
-  for (; k + 8 <= count; k += 8) {
+  if constexpr (Simd) for (; k + 8 <= count; k += 8) {
     const __m256i idx = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(candidates + k));
     const __m512d r2 = simd::distance2(vx, vy, vz, simd::gather(idx, v.x), simd::gather(idx, v.y), simd::gather(idx, v.z));
-    const __mmask8 keep = _mm512_cmp_pd_mask(r2, vs, _CMP_LT_OQ) & _mm512_cmp_pd_mask(r2, vmin, _CMP_GT_OQ);
+    __mmask8 keep = _mm512_cmp_pd_mask(r2, vs, _CMP_LT_OQ) & _mm512_cmp_pd_mask(r2, vmin, _CMP_GT_OQ);
+    if constexpr (DropBoundaryPairs)
+      keep &= _mm512_cmp_pd_mask(_mm512_add_pd(vf, simd::gather(idx, v.is_fluid)), zero, _CMP_GT_OQ);
     simd::store_compressed(out + n, idx, keep);
     n += std::popcount(static_cast<unsigned>(keep));
   }
 #elif defined(SPHNL_FILTER_AVX2)
-  for (; k + 8 <= count; k += 8) {
+  if constexpr (Simd) for (; k + 8 <= count; k += 8) {
     const __m256i idx = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(candidates + k));
     unsigned keep = 0;
     for (unsigned half = 0; half < 2; ++half) {
       const __m128i q = half ? _mm256_extracti128_si256(idx, 1) : _mm256_castsi256_si128(idx);
       const __m256d r2 = simd::distance2(vx, vy, vz, simd::gather(q, v.x), simd::gather(q, v.y), simd::gather(q, v.z));
-      keep |= simd::bits(_mm256_and_pd(_mm256_cmp_pd(r2, vs, _CMP_LT_OQ), _mm256_cmp_pd(r2, vmin, _CMP_GT_OQ)))
-              << (4 * half);
+      __m256d ok = _mm256_and_pd(_mm256_cmp_pd(r2, vs, _CMP_LT_OQ), _mm256_cmp_pd(r2, vmin, _CMP_GT_OQ));
+      if constexpr (DropBoundaryPairs)
+        ok = _mm256_and_pd(ok, _mm256_cmp_pd(_mm256_add_pd(vf, simd::gather(q, v.is_fluid)), zero, _CMP_GT_OQ));
+      keep |= simd::bits(ok) << (4 * half);
     }
     simd::store_compressed(out + n, idx, keep);
     n += std::popcount(keep);
@@ -197,7 +211,10 @@ inline int filter_list(const ParticleView& v, std::uint32_t i, const std::uint32
     const std::uint32_t j = candidates[k];
     const double r2 = distance2(xi - v.x[j], yi - v.y[j], zi - v.z[j]);
     out[n] = j;
-    n += (r2 < support2) & (r2 > CubicSpline::kMinR2);
+    if constexpr (DropBoundaryPairs)
+      n += (r2 < support2) & (r2 > min_r2) & (fi + v.is_fluid[j] > 0.0);
+    else
+      n += (r2 < support2) & (r2 > min_r2);
   }
   return n;
 }

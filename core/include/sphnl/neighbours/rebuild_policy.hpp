@@ -32,6 +32,7 @@ struct RebuildSettings {
   bool reorder = true;
   int reorder_every = 1;     // reorder at every k-th build
   int threads = 1;
+  PairLoopOptions build;     // simd, skip_boundary_pairs of the Verlet-list build sweep
 };
 
 /// What the policy needs to know of the flow at the start of a step.

@@ -20,8 +20,10 @@
 #include <vector>
 
 #include "sphnl/neighbours/cell_sweep.hpp"
+#include "sphnl/neighbours/home_candidates.hpp"
 #include "sphnl/neighbours/pair_counts.hpp"
 #include "sphnl/neighbours/pair_filter.hpp"
+#include "sphnl/neighbours/pair_loop_options.hpp"
 #include "sphnl/neighbours/pair_operation.hpp"
 #include "sphnl/neighbours/particle_grid.hpp"
 #include "sphnl/neighbours/thread_accumulators.hpp"
@@ -33,15 +35,20 @@ namespace sphnl {
 class VerletList {
  public:
   /// Builds the list from `pg`, gridded with cells of side >= sqrt(list_radius2):
-  /// every pair (not boundary-boundary) with r^2 < list_radius2.
-  void build(const ParticleGrid& pg, ParticleSet& ps, double list_radius2, int threads);
+  /// every pair (not boundary-boundary) with r^2 < list_radius2. `options`:
+  /// simd and skip_boundary_pairs of the build sweep's filter.
+  void build(const ParticleGrid& pg, ParticleSet& ps, double list_radius2, int threads,
+             const PairLoopOptions& options = {});
 
   /// Runs ops[thread].interact on every listed pair with 1e-18 < r^2 < support2,
   /// on the global particle arrays (once per pair). Threads take contiguous
   /// ranges of particles with equal shares of the list; threads > 0 accumulate
   /// privately and are summed in a fixed order (deterministic for a fixed count).
+  /// `simd` = false: the scalar distance filter (decided once per pass).
   template <PairOperation Op>
-  PairCounts for_each_pair(ParticleSet& ps, std::vector<Op>& ops, double support2);
+  PairCounts for_each_pair(ParticleSet& ps, std::vector<Op>& ops, double support2, bool simd = true) {
+    return simd ? loop<true>(ps, ops, support2) : loop<false>(ps, ops, support2);
+  }
 
   /// Stored pairs (each unordered pair once).
   std::uint64_t pairs() const { return offsets_.empty() ? 0 : offsets_.back(); }
@@ -53,6 +60,10 @@ class VerletList {
   std::size_t bytes() const;
 
  private:
+  template <bool Simd, PairOperation Op>
+  PairCounts loop(ParticleSet& ps, std::vector<Op>& ops, double support2);
+  template <bool Simd, bool SkipBoundaryPairs>
+  void build_sweep(const ParticleGrid& pg, ParticleSet& ps, double list_radius2, int threads);
   void prepare_loop(ParticleSet& ps, unsigned outputs, int threads);
   void reduce(ParticleSet& ps, unsigned outputs, int threads);
 
@@ -84,8 +95,8 @@ class VerletList {
   std::vector<PairCounts> counts_;
 };
 
-template <PairOperation Op>
-PairCounts VerletList::for_each_pair(ParticleSet& ps, std::vector<Op>& ops, double support2) {
+template <bool Simd, PairOperation Op>
+PairCounts VerletList::loop(ParticleSet& ps, std::vector<Op>& ops, double support2) {
   const int threads = static_cast<int>(ops.size());
   constexpr unsigned outputs = Op::kFields & (fields::force_out | fields::kgc_m_out);
   prepare_loop(ps, outputs, threads);
@@ -102,7 +113,7 @@ PairCounts VerletList::for_each_pair(ParticleSet& ps, std::vector<Op>& ops, doub
       const int n = static_cast<int>(off[r + 1] - off[r]);
       if (n == 0) continue;
       const std::uint32_t i = visit_[r];
-      const int m = filter_list(s.view, i, nb + off[r], n, support2, survivors);
+      const int m = filter_list<Simd>(s.view, i, nb + off[r], n, support2, survivors);
       if (m > 0) ops[t].interact(s.view, i, survivors, m);
       c.candidates += static_cast<std::uint64_t>(n);
       c.interactions += static_cast<std::uint64_t>(m);
