@@ -123,6 +123,8 @@ const std::vector<Key>& key_table() {
        [](const RunConfig& c) { return json(c.kgc); }},
       {"verify_lists", [](RunConfig& c, const json& v) { c.verify_lists = get_bool("verify_lists", v); },
        [](const RunConfig& c) { return json(c.verify_lists); }},
+      {"rebalance_threshold", [](RunConfig& c, const json& v) { c.rebalance_threshold = get_number("rebalance_threshold", v, 0, 1e3, false); },
+       [](const RunConfig& c) { return json(c.rebalance_threshold); }},
   };
   return table;
 }

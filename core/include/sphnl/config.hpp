@@ -50,6 +50,9 @@ struct RunConfig {
   double skin_factor = 0;      // nu of Delta h; 0 = paper default (1.2 VL_C, 1.0 VL_X)
   bool kgc = false;            // kernel gradient correction: the second loop per step
   bool verify_lists = false;   // check every step that no interacting pair is missing
+  // distributed runs (mpirun -np P): re-cut the ranks' key ranges at a build
+  // when the heaviest rank holds more than (1 + this) times the mean work
+  double rebalance_threshold = 0.1;
 
   double effective_skin_factor() const {
     if (skin_factor > 0) return skin_factor;
