@@ -35,6 +35,14 @@ TEST(Distributed, VerletListCMatchesSerial) { expect_ranks_match_serial(with(Lis
 
 TEST(Distributed, VerletListXMatchesSerial) { expect_ranks_match_serial(with(ListKind::vlx), {2, 3, 4}); }
 
+TEST(Distributed, HybridRanksAndThreadsMatchSerial) {
+  // Two ranks of two OpenMP threads each against one process of two threads.
+  Scenario sc = with(ListKind::vlx);
+  sc.config.threads = 2;
+  sc.steps = 20;
+  expect_ranks_match_serial(sc, {2});
+}
+
 TEST(Distributed, KernelGradientCorrectionMatchesSerial) {
   Scenario sc = with(ListKind::vlx);
   sc.config.kgc = true;
