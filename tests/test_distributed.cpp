@@ -9,15 +9,6 @@
 namespace sphnl::test {
 namespace {
 
-Scenario with(ListKind list, CellOrderKind order = CellOrderKind::sort_x, GridderKind gridder = GridderKind::B) {
-  Scenario sc;
-  sc.config.list = list;
-  sc.config.list_steps = list == ListKind::cll ? 1 : 7;
-  sc.config.cell_order = order;
-  sc.config.gridder = gridder;
-  return sc;
-}
-
 void expect_ranks_match_serial(const Scenario& sc, std::initializer_list<int> ranks) {
   const Outcome serial = run_scenario(sc, nullptr);
   for (const int p : ranks) {
@@ -29,41 +20,44 @@ void expect_ranks_match_serial(const Scenario& sc, std::initializer_list<int> ra
   }
 }
 
-TEST(Distributed, CellLinkedListMatchesSerial) { expect_ranks_match_serial(with(ListKind::cll), {2, 3, 4}); }
+TEST(Distributed, CellLinkedListMatchesSerial) { expect_ranks_match_serial(scenario_with(ListKind::cll), {2, 3, 4}); }
 
-TEST(Distributed, VerletListCMatchesSerial) { expect_ranks_match_serial(with(ListKind::vlc), {2, 3, 4}); }
+TEST(Distributed, VerletListCMatchesSerial) { expect_ranks_match_serial(scenario_with(ListKind::vlc), {2, 3, 4}); }
 
-TEST(Distributed, VerletListXMatchesSerial) { expect_ranks_match_serial(with(ListKind::vlx), {2, 3, 4}); }
+TEST(Distributed, VerletListXMatchesSerial) { expect_ranks_match_serial(scenario_with(ListKind::vlx), {2, 3, 4}); }
 
 TEST(Distributed, HybridRanksAndThreadsMatchSerial) {
   // Two ranks of two OpenMP threads each against one process of two threads.
-  Scenario sc = with(ListKind::vlx);
+  Scenario sc = scenario_with(ListKind::vlx);
   sc.config.threads = 2;
   sc.steps = 20;
   expect_ranks_match_serial(sc, {2});
 }
 
 TEST(Distributed, KernelGradientCorrectionMatchesSerial) {
-  Scenario sc = with(ListKind::vlx);
+  Scenario sc = scenario_with(ListKind::vlx);
   sc.config.kgc = true;
   sc.steps = 20;
   expect_ranks_match_serial(sc, {3});
 }
 
 TEST(Distributed, EveryOrderAndGridderMatchesSerial) {
+  // Every gridder and every order once, with each list (B and sort_x above).
+  const std::pair<CellOrderKind, GridderKind> combos[] = {{CellOrderKind::sort_xyz, GridderKind::A},
+                                                          {CellOrderKind::hilbert, GridderKind::C},
+                                                          {CellOrderKind::sort_xy, GridderKind::D}};
   for (const ListKind list : {ListKind::cll, ListKind::vlx})
-    for (const CellOrderKind order : {CellOrderKind::sort_xyz, CellOrderKind::hilbert})
-      for (const GridderKind g : {GridderKind::A, GridderKind::C, GridderKind::D}) {
-        SCOPED_TRACE(std::string(to_string(list)) + " " + to_string(order) + " " + to_string(g));
-        Scenario sc = with(list, order, g);
-        sc.steps = 15;
-        expect_ranks_match_serial(sc, {3});
-      }
+    for (const auto& [order, g] : combos) {
+      SCOPED_TRACE(std::string(to_string(list)) + " " + to_string(order) + " " + to_string(g));
+      Scenario sc = scenario_with(list, order, g);
+      sc.steps = 12;
+      expect_ranks_match_serial(sc, {3});
+    }
 }
 
 TEST(Distributed, WithoutReorderingMatchesSerial) {
   for (const ListKind list : {ListKind::cll, ListKind::vlc}) {
-    Scenario sc = with(list);
+    Scenario sc = scenario_with(list);
     sc.config.reorder = false;
     sc.steps = 20;
     expect_ranks_match_serial(sc, {2});
@@ -73,9 +67,9 @@ TEST(Distributed, WithoutReorderingMatchesSerial) {
 TEST(Distributed, ParticlesCrossRanksAndLeaveTheDomain) {
   for (const ListKind list : {ListKind::cll, ListKind::vlx}) {
     SCOPED_TRACE(to_string(list));
-    Scenario sc = with(list);
+    Scenario sc = scenario_with(list);
     sc.push_out = true;
-    sc.steps = 60;
+    sc.steps = 30;
     const Outcome serial = run_scenario(sc, nullptr);
     ASSERT_GT(serial.lost, 0u) << "the scenario must throw particles out";
     const Outcome dist = run_threads(sc, 3);
@@ -87,7 +81,7 @@ TEST(Distributed, ParticlesCrossRanksAndLeaveTheDomain) {
 TEST(Distributed, VerletListXRebuildTriggeredByOneRank) {
   // With sort_x the last rank holds the still water behind the obstacle and
   // the walls: its particles barely move, so its rebuilds come from the others.
-  Scenario sc = with(ListKind::vlx);
+  Scenario sc = scenario_with(ListKind::vlx);
   const Outcome serial = run_scenario(sc, nullptr);
   const Outcome dist = run_threads(sc, 4);
   expect_same_run(serial, dist);
@@ -99,7 +93,7 @@ TEST(Distributed, VerletListXRebuildTriggeredByOneRank) {
 TEST(Distributed, ARankWithoutFluid) {
   // Eight ranks along x: the water (x < 0.4 m of 1.6 m) is far lighter than
   // the walls and floor by count, so the ranks on the right own walls only.
-  Scenario sc = with(ListKind::cll);
+  Scenario sc = scenario_with(ListKind::cll);
   sc.steps = 20;
   const Outcome serial = run_scenario(sc, nullptr);
   const Outcome dist = run_threads(sc, 8);
@@ -107,8 +101,31 @@ TEST(Distributed, ARankWithoutFluid) {
   expect_same_run(serial, dist);
 }
 
+TEST(Distributed, PeriodicSlabMatchesSerial) {
+  // A Martin & Moyce column in a slab periodic in y (test_periodic.cpp's
+  // case): ghosts across the seam come from the cells at the other side.
+  for (const CellOrderKind order : {CellOrderKind::hilbert}) {
+    Scenario sc = scenario_with(ListKind::cll, order);
+    sc.steps = 5;
+    sc.make_case = [&](PhysicsParams& phys) {
+      const double a = 2.25 * 0.0254, dx = a / 10;
+      CaseGeometry g;
+      g.tank = Box{{0, 0, 0}, {4.5 * a, 10 * dx, 2 * a + 2 * dx}};
+      g.water = {Box{{0, 0, 0}, {a, 10 * dx, 2 * a}}};
+      g.still_water_depth = 2 * a;
+      g.periodic_y = true;
+      const RunConfig& c = sc.config;
+      phys = PhysicsParams::make(c.h_coefficient * std::sqrt(3.0) * dx, g.still_water_depth, c.sound_speed_coef,
+                                 c.viscosity_alpha, c.xsph_epsilon, c.cfl, c.clamp_boundary_density);
+      return make_case(g, dx, Lattice::bcc, c.h_coefficient, phys);
+    };
+    SCOPED_TRACE(to_string(order));
+    expect_ranks_match_serial(sc, {3});
+  }
+}
+
 TEST(Distributed, MoreRanksThanCellsIsAClearError) {
-  Scenario sc = with(ListKind::cll);
+  Scenario sc = scenario_with(ListKind::cll);
   sc.config.particles = 200;  // a coarse case: few cells, so few threads
   sc.steps = 1;
   const Simulation serial(sc.config);

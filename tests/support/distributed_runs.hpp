@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <exception>
+#include <functional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -26,7 +27,20 @@ struct Scenario {
   /// the top layer of the water thrown out through the open top of the tank
   /// (particles leave the domain).
   bool push_out = false;
+  /// Another case than the dam break (its PhysicsParams through the argument).
+  std::function<Case(PhysicsParams&)> make_case;
 };
+
+/// The small dam break with `list` (n_s = 7 for Verlet lists), `order` and `gridder`.
+inline Scenario scenario_with(ListKind list, CellOrderKind order = CellOrderKind::sort_x,
+                              GridderKind gridder = GridderKind::B) {
+  Scenario sc;
+  sc.config.list = list;
+  sc.config.list_steps = list == ListKind::cll ? 1 : 7;
+  sc.config.cell_order = order;
+  sc.config.gridder = gridder;
+  return sc;
+}
 
 /// What a run ends with, at rank 0 (the other ranks' particles empty).
 struct Outcome {
@@ -42,6 +56,7 @@ struct Outcome {
 };
 
 inline Case scenario_case(const Scenario& sc, PhysicsParams& phys) {
+  if (sc.make_case) return sc.make_case(phys);
   Simulation base(sc.config);
   phys = base.physics();
   Case c = base.case_info();
