@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "support/distributed_runs.hpp"
+#include "support/periodic_slab.hpp"
 
 namespace sphnl::test {
 namespace {
@@ -108,12 +109,8 @@ TEST(Distributed, PeriodicSlabMatchesSerial) {
     Scenario sc = scenario_with(ListKind::cll, order);
     sc.steps = 5;
     sc.make_case = [&](PhysicsParams& phys) {
-      const double a = 2.25 * 0.0254, dx = a / 10;
-      CaseGeometry g;
-      g.tank = Box{{0, 0, 0}, {4.5 * a, 10 * dx, 2 * a + 2 * dx}};
-      g.water = {Box{{0, 0, 0}, {a, 10 * dx, 2 * a}}};
-      g.still_water_depth = 2 * a;
-      g.periodic_y = true;
+      const CaseGeometry g = periodic_slab_geometry();
+      const double dx = kSlabDx;
       const RunConfig& c = sc.config;
       phys = PhysicsParams::make(c.h_coefficient * std::sqrt(3.0) * dx, g.still_water_depth, c.sound_speed_coef,
                                  c.viscosity_alpha, c.xsph_epsilon, c.cfl, c.clamp_boundary_density);
