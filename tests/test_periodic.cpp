@@ -14,6 +14,7 @@
 #include "support/clouds.hpp"
 #include "support/oracle.hpp"
 #include "support/pair_sources.hpp"
+#include "support/periodic_slab.hpp"
 
 using namespace sphnl;
 using namespace sphnl::test;
@@ -57,12 +58,8 @@ TEST(Periodic, NarrowPeriodIsRefusedWithTheWidthNeeded) {
 
 TEST(Periodic, SlabCaseHasNoSideWallsAndSimulatesAcrossTheSeam) {
   // A Martin & Moyce column, coarse, in a slab that is periodic in y.
-  const double a = 2.25 * 0.0254, dx = a / 10;
-  CaseGeometry g;
-  g.tank = Box{{0, 0, 0}, {4.5 * a, 10 * dx, 2 * a + 2 * dx}};
-  g.water = {Box{{0, 0, 0}, {a, 10 * dx, 2 * a}}};
-  g.still_water_depth = 2 * a;
-  g.periodic_y = true;
+  const double dx = test::kSlabDx;
+  const CaseGeometry g = test::periodic_slab_geometry();
   RunConfig c;
   c.progress = false;
   const double h = c.h_coefficient * std::sqrt(3.0) * dx;

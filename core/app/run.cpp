@@ -19,6 +19,8 @@
 #include "sphnl/memory_estimate.hpp"
 #include "sphnl/run_checks.hpp"
 #include "sphnl/output.hpp"
+#include "sphnl/parallel/gather_particles.hpp"
+#include "sphnl/ranks.hpp"
 #include "sphnl/timer.hpp"
 #include "sphnl_revision.hpp"
 
@@ -58,7 +60,9 @@ class Progress {
     last_print_ = now;
     const double rate = now > 0 ? static_cast<double>(sim.steps_done()) / now : 0;
     const double eta = fraction_done > 0 ? std::max(0.0, now * (1 - fraction_done) / fraction_done) : -1;
-    const std::size_t active = sim.particles().size() - sim.lost();
+    const Case& c = sim.case_info();
+    const std::size_t total = sim.domain() ? c.n_fluid + c.n_boundary : sim.particles().size();
+    const std::size_t active = total - sim.lost();
     std::fprintf(stderr, "%sstep %ld  t = %.4f s  dt = %.3e s  particles %zu  %.1f steps/s  ETA %s%s",
                  tty_ ? "\r" : "", sim.steps_done(), sim.time(), sim.last_dt(), active, rate,
                  format_duration(eta).c_str(), tty_ ? "\033[K" : "\n");
@@ -197,12 +201,57 @@ json run_summary(const Simulation& sim, double initial_mass, double wall_total_s
   return s;
 }
 
+json parallel_summary(const Simulation& sim, Communicator& comm) {
+  const DomainExchange& d = *sim.domain();
+  const NeighbourStats& st = sim.neighbour_stats();
+  const PhaseTimes& t = sim.phase_times();
+  const double steps = static_cast<double>(std::max<long>(sim.steps_done(), 1));
+  const double owned = static_cast<double>(sim.owned()), ghosts = static_cast<double>(d.ghosts());
+  double fluid = 0;
+  for (std::size_t i = 0; i < sim.owned(); ++i) fluid += sim.particles().type[i] == ParticleType::fluid;
+  // Counts summed over ranks (a pair across a rank boundary counts on both
+  // sides, ghost-ghost pairs too); phase times as the slowest rank's.
+  double sums[] = {static_cast<double>(st.candidates), static_cast<double>(st.interactions),
+                   static_cast<double>(st.list_pairs), static_cast<double>(st.kgc_fallbacks),
+                   static_cast<double>(sim.neighbour_bytes()), static_cast<double>(d.bytes_sent())};
+  comm.sum(sums);
+  double maxima[] = {t.neighbour_list, t.force, t.update, t.communication, t.total(), owned, -owned, ghosts, -ghosts,
+                     static_cast<double>(peak_rss_bytes()), fluid, -fluid};
+  comm.max(maxima);
+  auto count = [](double v) { return static_cast<std::uint64_t>(std::llround(v)); };
+  auto range = [&](double lo, double hi) { return json{{"min", count(lo)}, {"max", count(hi)}}; };
+  json p;
+  p["ranks"] = comm.size();
+  p["particles_per_rank"] = range(-maxima[6], maxima[5]);
+  p["ghosts_per_rank"] = range(-maxima[8], maxima[7]);
+  p["fluid_per_rank"] = range(-maxima[11], maxima[10]);
+  p["bytes_sent_per_step"] = sums[5] / steps;
+  p["partitions"] = d.partitions();
+  p["counts"] = {{"candidates", count(sums[0])}, {"interactions", count(sums[1])}, {"list_pairs", count(sums[2])},
+                 {"kgc_fallbacks", count(sums[3])}, {"neighbour_bytes", count(sums[4])}};
+  p["wall_time_s"] = {{"neighbour_list", maxima[0]}, {"force", maxima[1]}, {"update", maxima[2]},
+                      {"communication", maxima[3]}, {"total", maxima[4]}};
+  p["peak_rss_bytes"] = count(maxima[9]);
+  return p;
+}
+
 int run_main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i)
     if (std::strcmp(argv[i], "--help") == 0 || std::strcmp(argv[i], "-h") == 0) {
       std::cout << run_usage();
       return 0;
     }
+  // A launcher (mpirun, srun) with P > 1 ranks: this process is one of them.
+  std::unique_ptr<Communicator> comm;
+  try {
+    comm = start_ranks();
+  } catch (const std::exception& e) {
+    std::cerr << "sphnl run: " << e.what() << "\n";
+    return 2;
+  }
+  const bool root = !comm || comm->rank() == 0;
+  std::ostream null_stream(nullptr);
+  std::ostream& err = root ? std::cerr : null_stream;  // every rank finds the same input errors: rank 0 tells
   // --- everything the user gave is checked before any work ---
   RunOptions options;
   RunConfig config;
@@ -210,52 +259,58 @@ int run_main(int argc, char** argv) {
     options = parse_run_options(argc, argv);
     config = load_run_config(options);
   } catch (const ConfigError& e) {
-    std::cerr << "sphnl run: " << e.what() << "\n\n" << run_usage();
+    err << "sphnl run: " << e.what() << "\n\n" << run_usage();
     return 2;
   } catch (const nlohmann::json::exception& e) {
-    std::cerr << "sphnl run: " << e.what() << "\n";
+    err << "sphnl run: " << e.what() << "\n";
     return 2;
   }
   if (!options.force_memory) {
     try {
       check_memory(estimate_run_memory(config), "this run", "--force-memory");
     } catch (const MemoryError& e) {
-      std::cerr << "sphnl run: " << e.what() << "\n";
+      err << "sphnl run: " << e.what() << "\n";
       return 2;
     }
   }
-  if (const std::string w = threads_warning(config.threads); !w.empty()) std::cerr << "sphnl run: " << w << "\n";
+  if (const std::string w = threads_warning(config.threads); !w.empty()) err << "sphnl run: " << w << "\n";
+  if (comm) options.quiet = options.quiet || !root;
   const fs::path out_dir(options.out_dir), snap_dir = out_dir / "snapshots";
-  try {
-    prepare_output_folder(out_dir, options.overwrite);
-    ensure_writable_directory(out_dir);
-    ensure_writable_directory(snap_dir);
-  } catch (const std::exception& e) {
-    std::cerr << "sphnl run: " << e.what() << "\n";
-    return 2;
+  bool folder_ok = true;
+  if (root) {  // one rank prepares the folder that rank 0 alone writes
+    try {
+      prepare_output_folder(out_dir, options.overwrite);
+      ensure_writable_directory(out_dir);
+      ensure_writable_directory(snap_dir);
+    } catch (const std::exception& e) {
+      err << "sphnl run: " << e.what() << "\n";
+      folder_ok = false;
+    }
   }
+  if (comm) folder_ok = !comm->any(!folder_ok);
+  if (!folder_ok) return 2;
 
   Stopwatch wall;
   std::unique_ptr<Simulation> sim_ptr;
   try {
-    sim_ptr = std::make_unique<Simulation>(config);
+    sim_ptr = std::make_unique<Simulation>(config, comm.get());
     check_case_size(sim_ptr->case_info(), config);
   } catch (const ConfigError& e) {
-    std::cerr << "sphnl run: " << e.what() << "\n";
+    err << "sphnl run: " << e.what() << "\n";
     return 2;
   } catch (const std::exception& e) {
-    std::cerr << "sphnl run: cannot set up the case: " << e.what() << "\n";
+    err << "sphnl run: cannot set up the case: " << e.what() << "\n";
     return 2;
   }
   Simulation& sim = *sim_ptr;
   const bool quiet = options.quiet || !config.progress;
   if (!quiet)
-    std::fprintf(stderr, "sphnl run: %zu particles (%zu fluid, %zu boundary), dx = %.5g m, h = %.5g m, %s -> %s\n",
-                 sim.particles().size(), sim.case_info().n_fluid, sim.case_info().n_boundary, sim.case_info().dx,
+    std::fprintf(stderr, "sphnl run: %zu particles (%zu fluid, %zu boundary), dx = %.5g m, h = %.5g m, %s -> %s%s\n",
+                 sim.domain() ? sim.case_info().n_fluid + sim.case_info().n_boundary : sim.particles().size(), sim.case_info().n_fluid, sim.case_info().n_boundary, sim.case_info().dx,
                  sim.physics().h(),
                  config.steps > 0 ? (std::to_string(config.steps) + " steps").c_str()
                                   : (std::to_string(config.end_time) + " s").c_str(),
-                 out_dir.string().c_str());
+                 out_dir.string().c_str(), comm ? (", " + std::to_string(comm->size()) + " ranks").c_str() : "");
 
   const double initial_mass = sim.total_mass();
   std::vector<SnapshotEntry> snapshots;
@@ -264,14 +319,41 @@ int run_main(int argc, char** argv) {
     Stopwatch sw;
     const std::string stem = snapshot_stem(sim.steps_done());
     SnapshotEntry e{sim.steps_done(), sim.time(), "snapshots/" + stem + ".vtu", "snapshots/" + stem + ".csv"};
-    write_vtu(out_dir / e.vtu, sim.particles(), sim.time());
-    write_csv(out_dir / e.csv, sim.particles());
     snapshots.push_back(e);
+    if (comm) {  // rank 0 writes every rank's particles, in id order as ever
+      const ParticleSet all = gather_particles(*comm, sim.particles(), sim.owned());
+      if (!root) return;
+      write_vtu(out_dir / e.vtu, all, sim.time());
+      write_csv(out_dir / e.csv, all);
+    } else {
+      write_vtu(out_dir / e.vtu, sim.particles(), sim.time());
+      write_csv(out_dir / e.csv, sim.particles());
+    }
     write_pvd(out_dir / "snapshots.pvd", snapshots);
     output_seconds += sw.lap();
   };
   auto summary = [&](const std::string& status) {
     json s = run_summary(sim, initial_mass, wall.lap());  // setup, steps and output
+    if (comm) {
+      const json p = parallel_summary(sim, *comm);
+      if (!root) return;
+      const Case& c = sim.case_info();
+      s["n_total"] = c.n_fluid + c.n_boundary;
+      for (const char* k : {"ranks", "particles_per_rank", "ghosts_per_rank", "fluid_per_rank", "bytes_sent_per_step", "partitions"})
+        s[k] = p[k];
+      for (const auto& [k, v] : p["counts"].items())
+        if (k == "neighbour_bytes") s[k] = v; else s["neighbour_stats"][k] = v;
+      const double steps = static_cast<double>(std::max<long>(sim.steps_done(), 1)) * static_cast<double>(s["n_total"].get<std::size_t>());
+      const double candidates = p["counts"]["candidates"].get<double>(), interactions = p["counts"]["interactions"].get<double>();
+      s["neighbour_stats"]["candidates_per_particle"] = 2.0 * candidates / steps;
+      s["neighbour_stats"]["interactions_per_particle"] = 2.0 * interactions / steps;
+      s["neighbour_stats"]["interacting_fraction_of_candidates"] = candidates > 0 ? interactions / candidates : 0.0;
+      const double run_s = s["wall_time_s"]["run"];
+      s["wall_time_s"] = p["wall_time_s"];
+      s["wall_time_s"]["run"] = run_s;
+      s["seconds_per_step"] = p["wall_time_s"]["total"].get<double>() / static_cast<double>(std::max<long>(sim.steps_done(), 1));
+      s["peak_rss_bytes"] = p["peak_rss_bytes"];
+    }
     s["status"] = status;
     s["wall_time_s"]["output"] = output_seconds;
     json snaps = json::array();
@@ -301,7 +383,8 @@ int run_main(int argc, char** argv) {
     double next_output = config.output_interval;
     if (config.output_interval > 0) snapshot();  // t = 0
     while (!done()) {
-      if (g_interrupted) { status = "interrupted"; exit_code = 130; break; }
+      // Distributed: every rank stops at the same step when any was interrupted.
+      if (comm ? comm->any(g_interrupted != 0) : g_interrupted != 0) { status = "interrupted"; exit_code = 130; break; }
       sim.step();
       progress.update(sim, fraction(), false);
       if (config.output_interval > 0 && sim.time() >= next_output && !done()) {
@@ -315,7 +398,7 @@ int run_main(int argc, char** argv) {
     if (snapshots.empty() || snapshots.back().step != sim.steps_done()) snapshot();  // the final state, always
   } catch (const std::exception& e) {
     progress.finish();
-    std::cerr << "sphnl run: " << e.what() << "\n";
+    std::cerr << "sphnl run: " << (comm ? "rank " + std::to_string(comm->rank()) + ": " : "") << e.what() << "\n";
     status = std::string("failed: ") + e.what();
     exit_code = 1;
     try {
@@ -330,7 +413,7 @@ int run_main(int argc, char** argv) {
     std::cerr << "sphnl run: " << e.what() << "\n";
     return 1;
   }
-  if (!quiet)
+  if (!quiet && root)
     std::fprintf(stderr, "sphnl run: %s: %ld steps, t = %.4f s, %.3f s per step, %zu lost; wrote %s\n",
                  status.c_str(), sim.steps_done(), sim.time(),
                  sim.phase_times().total() / static_cast<double>(std::max<long>(sim.steps_done(), 1)), sim.lost(),

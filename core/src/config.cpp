@@ -139,6 +139,8 @@ const std::vector<Key>& key_table() {
        [](const RunConfig& c) { return json(to_string(c.initial_order)); }},
       {"extra_loops", [](RunConfig& c, const json& v) { c.extra_loops = static_cast<int>(get_integer("extra_loops", v, 0, 3)); },
        [](const RunConfig& c) { return json(c.extra_loops); }},
+      {"rebalance_threshold", [](RunConfig& c, const json& v) { c.rebalance_threshold = get_number("rebalance_threshold", v, 0, 1e3, false); },
+       [](const RunConfig& c) { return json(c.rebalance_threshold); }},
   };
   return table;
 }

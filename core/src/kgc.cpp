@@ -15,8 +15,8 @@ double kgc_trace_sum(const ParticleSet& ps) {
   return sum;
 }
 
-std::size_t invert_kgc_matrices(ParticleSet& ps) {
-  const std::size_t n = ps.size();
+std::size_t invert_kgc_matrices(ParticleSet& ps, std::size_t count) {
+  const std::size_t n = std::min(count, ps.size());
   std::size_t fallbacks = 0;
   // symmetric storage order xx, xy, xz, yy, yz, zz
   constexpr int kRow[6] = {0, 0, 0, 1, 1, 2}, kCol[6] = {0, 1, 2, 1, 2, 2};

@@ -43,17 +43,17 @@ RebuildSettings rebuild_settings(const RunConfig& c) {
 
 }  // namespace
 
-Simulation::Simulation(const RunConfig& config)
+Simulation::Simulation(const RunConfig& config, Communicator* comm)
     : config_(config), case_(dam_break_case(config, phys_)), ps_(case_.particles), policy_(rebuild_settings(config)) {
-  init();
+  init(comm);
 }
 
-Simulation::Simulation(const RunConfig& config, Case c, const PhysicsParams& phys)
+Simulation::Simulation(const RunConfig& config, Case c, const PhysicsParams& phys, Communicator* comm)
     : config_(config), phys_(phys), case_(std::move(c)), ps_(case_.particles), policy_(rebuild_settings(config)) {
-  init();
+  init(comm);
 }
 
-void Simulation::init() {
+void Simulation::init(Communicator* comm) {
   if (config_.list_steps < 1)
     throw ConfigError("list_steps must be >= 1 (n_s, the steps a Verlet list is meant to live); got " +
                       std::to_string(config_.list_steps));
@@ -84,6 +84,11 @@ void Simulation::init() {
   if (config_.verify_lists && config_.list != ListKind::cll)
     verify_grid_ = make_particle_grid();
   update_derived(phys_, ps_, 0, ps_.size());
+  if (comm && comm->size() > 1) {
+    domain_ = std::make_unique<DomainExchange>(*comm, phys_, case_.domain, case_.period_y, config_.cell_order,
+                                               config_.rebalance_threshold);
+    domain_->distribute(ps_, 2.0 * phys_.h());
+  }
 }
 
 std::unique_ptr<ParticleGrid> Simulation::make_particle_grid() const {
@@ -115,7 +120,7 @@ FlowState Simulation::flow_state() const {
 
 void Simulation::build_neighbours() {
   neighbours_ready_ = true;
-  policy_.prepare(ps_, *grid_, verlet_, flow_state(), stats_);
+  policy_.prepare(ps_, *grid_, verlet_, flow_state(), stats_, domain_.get());
 }
 
 std::uint64_t Simulation::count_list_misses() {
@@ -142,7 +147,8 @@ void Simulation::compute_forces_with(std::vector<ForcePlain>& force_ops, std::ve
     // loop with corrected gradients.
     clear_kgc_matrices(ps_);
     for_each_pair(kgc_ops);
-    stats_.kgc_fallbacks += invert_kgc_matrices(ps_);
+    stats_.kgc_fallbacks += invert_kgc_matrices(ps_, owned());
+    if (domain_) domain_->refresh_kgc(ps_);
     for (auto& op : force_ops_kgc) op.max_mu = 0;
     counts = for_each_pair(force_ops_kgc);
     for (const auto& op : force_ops_kgc) mu = std::max(mu, op.max_mu);
@@ -191,7 +197,7 @@ double Simulation::time_step() const {
   // eq. 7: dt = CFL min(dt_f, dt_cv). dt_cv uses the largest sound speed and
   // the largest |h v.r/(r^2+eta^2)| over all pairs (as SPHysics codes it).
   double max_f2 = 0, max_c = 0;
-  const std::size_t n = ps_.size();
+  const std::size_t n = owned();
   for (std::size_t i = 0; i < n; ++i) {
     if (ps_.type[i] == ParticleType::out) continue;
     max_c = std::max(max_c, ps_.sound_speed[i]);
@@ -199,9 +205,15 @@ double Simulation::time_step() const {
     const double az = ps_.az[i] - phys_.gravity;
     max_f2 = std::max(max_f2, ps_.ax[i] * ps_.ax[i] + ps_.ay[i] * ps_.ay[i] + az * az);
   }
+  double max_mu = max_mu_;
+  if (domain_) {  // the serial maxima exactly: dt is the same on every rank
+    double m[3] = {max_f2, max_c, max_mu};
+    domain_->max(m);
+    max_f2 = m[0]; max_c = m[1]; max_mu = m[2];
+  }
   const double h = phys_.h();
   const double dt_f = max_f2 > 0 ? std::sqrt(h / std::sqrt(max_f2)) : std::numeric_limits<double>::infinity();
-  const double dt_cv = h / (max_c + max_mu_);
+  const double dt_cv = h / (max_c + max_mu);
   return phys_.cfl * std::min(dt_f, dt_cv);
 }
 
@@ -209,10 +221,11 @@ void Simulation::update(double dt) {
   // Verlet (docs/PHYSICS.md), with an Euler step every `euler_every` steps (the
   // first step included, which also starts the v^{n-1} history cleanly).
   const bool euler = steps_ % config_.euler_every == 0;
-  const std::size_t n = ps_.size();
+  const std::size_t n = owned();
   const double g = phys_.gravity, rho0 = phys_.rho0;
   const Box& dom = case_.domain;
   double vmax2 = 0;
+  std::size_t newly_lost = 0;
   for (std::size_t i = 0; i < n; ++i) {
     const ParticleType t = ps_.type[i];
     if (t == ParticleType::out) continue;
@@ -244,11 +257,16 @@ void Simulation::update(double dt) {
       ps_.type[i] = ParticleType::out;
       ps_.vx[i] = ps_.vy[i] = ps_.vz[i] = ps_.vx_prev[i] = ps_.vy_prev[i] = ps_.vz_prev[i] = 0;
       ps_.rho[i] = ps_.rho_prev[i] = rho0;
-      ++lost_;
+      ++newly_lost;
       continue;
     }
     vmax2 = std::max(vmax2, vx * vx + vy * vy + vz * vz);
   }
+  if (domain_) {
+    vmax2 = domain_->max(vmax2);
+    newly_lost = static_cast<std::size_t>(domain_->sum(static_cast<double>(newly_lost)));
+  }
+  lost_ += newly_lost;
   max_speed_ = std::sqrt(vmax2);
   update_derived(phys_, ps_, 0, n);
   const double limit = config_.max_lost_fraction * static_cast<double>(case_.n_fluid);
@@ -261,24 +279,34 @@ void Simulation::update(double dt) {
 
 void Simulation::step() {
   Stopwatch sw;
+  // A distributed run's exchanges and reductions are timed apart: each phase
+  // keeps its own work, `communication` the rest.
+  double comm_mark = domain_ ? domain_->comm_seconds() : 0;
+  auto phase_done = [&](double& phase) {
+    const double lap = sw.lap(), comm = domain_ ? domain_->comm_seconds() - comm_mark : 0;
+    comm_mark += comm;
+    phase += lap - comm;
+    times_.communication += comm;
+  };
   if (!neighbours_ready_) build_neighbours();
-  times_.neighbour_list += sw.lap();
+  phase_done(times_.neighbour_list);
   if (config_.verify_lists && config_.list != ListKind::cll) {  // a check, not part of any phase
     stats_.vl_misses += count_list_misses();
     ++stats_.verified_steps;
     sw.lap();
   }
   compute_forces();
-  times_.force += sw.lap();
+  phase_done(times_.force);
   dt_ = time_step();
   update(dt_);
-  times_.update += sw.lap();
+  phase_done(times_.update);
   time_ += dt_;
   ++steps_;
   neighbours_ready_ = false;
 }
 
 void Simulation::restore(const ParticleSet& state, double time, long steps, std::size_t lost) {
+  if (domain_) throw std::logic_error("Simulation::restore is for serial runs; a distributed run cannot restore a state");
   const std::size_t n = state.size();
   for (auto [dst, src] : {std::pair{&ps_.x, &state.x}, {&ps_.y, &state.y}, {&ps_.z, &state.z}, {&ps_.vx, &state.vx},
                           {&ps_.vy, &state.vy}, {&ps_.vz, &state.vz}, {&ps_.rho, &state.rho},
@@ -311,22 +339,34 @@ std::size_t Simulation::neighbour_bytes() const {
 
 double Simulation::total_mass() const {
   // Summed in id order, so that reordering (which permutes memory) cannot
-  // change the last bits of the total.
-  std::vector<double> by_id(ps_.size());
-  for (std::size_t i = 0; i < ps_.size(); ++i) by_id[ps_.id[i]] = ps_.mass[i];
+  // change the last bits of the total; distributed, at rank 0 over the
+  // gathered (id, mass) of every rank, then handed to all.
+  std::vector<double> by_id(case_.n_fluid + case_.n_boundary);
+  if (domain_) {
+    std::vector<double> mine;
+    for (std::size_t i = 0; i < owned(); ++i) mine.insert(mine.end(), {static_cast<double>(ps_.id[i]), ps_.mass[i]});
+    std::vector<std::vector<double>> all;
+    domain_->comm().gather(mine, all);
+    for (const auto& r : all)
+      for (std::size_t k = 0; k < r.size(); k += 2) by_id[static_cast<std::size_t>(r[k])] = r[k + 1];
+  } else {
+    by_id.resize(ps_.size());
+    for (std::size_t i = 0; i < ps_.size(); ++i) by_id[ps_.id[i]] = ps_.mass[i];
+  }
   double m = 0;
   for (double v : by_id) m += v;
-  return m;
+  return domain_ ? domain_->comm().sum(domain_->comm().rank() == 0 ? m : 0.0) : m;
 }
 
 std::array<double, 3> Simulation::momentum() const {
   std::array<double, 3> p{0, 0, 0};
-  for (std::size_t i = 0; i < ps_.size(); ++i) {
+  for (std::size_t i = 0; i < owned(); ++i) {
     if (ps_.type[i] != ParticleType::fluid) continue;
     p[0] += ps_.mass[i] * ps_.vx[i];
     p[1] += ps_.mass[i] * ps_.vy[i];
     p[2] += ps_.mass[i] * ps_.vz[i];
   }
+  if (domain_) domain_->comm().sum(p);
   return p;
 }
 

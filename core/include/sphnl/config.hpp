@@ -57,6 +57,9 @@ struct RunConfig {
   SlidingVariant gridder_a_variant = SlidingVariant::occupied;
   InitialOrder initial_order = InitialOrder::generated;
   int extra_loops = 0;              // extra pair passes per step (KGC matrix, computed, not applied)
+  // distributed runs (mpirun -np P): re-cut the ranks' key ranges at a build
+  // when the heaviest rank holds more than (1 + this) times the mean work
+  double rebalance_threshold = 0.1;
 
   double effective_skin_factor() const {
     if (skin_factor > 0) return skin_factor;

@@ -60,6 +60,8 @@ void clear_kgc_matrices(ParticleSet& ps);
 /// L_a = M_a^-1 for fluid particles whose M_a is well conditioned
 /// (|det M_a| > 0.01 and every |M_kk| > 0.25, docs/PHYSICS.md); L_a = I otherwise and
 /// for boundary and out particles. Returns how many fluid particles fell back to I.
-std::size_t invert_kgc_matrices(ParticleSet& ps);
+/// Only particles [0, count) (a distributed run's own; its ghosts get L_a from
+/// their owners).
+std::size_t invert_kgc_matrices(ParticleSet& ps, std::size_t count = ~std::size_t{0});
 
 }  // namespace sphnl

@@ -17,6 +17,8 @@
 #include "sphnl/neighbours/verlet_list.hpp"
 #include "sphnl/kgc.hpp"
 #include "sphnl/pair_kernel.hpp"
+#include "sphnl/parallel/communicator.hpp"
+#include "sphnl/parallel/domain_exchange.hpp"
 #include "sphnl/physics.hpp"
 
 namespace sphnl {
@@ -26,15 +28,19 @@ struct PhaseTimes {
   double neighbour_list = 0;  // cells division, particles in cells, reordering, Verlet list builds
   double force = 0;           // pair loops (KGC pre-pass included)
   double update = 0;          // time step, integration, equation of state
-  double total() const { return neighbour_list + force + update; }
+  double communication = 0;   // distributed runs: exchanges and reductions (taken out of the three above)
+  double total() const { return neighbour_list + force + update + communication; }
 };
 
 class Simulation {
  public:
-  /// The dam break of paper §2.2 at the size the config asks for.
-  explicit Simulation(const RunConfig& config);
+  /// The dam break of paper §2.2 at the size the config asks for. With a
+  /// communicator of more than one rank, this Simulation is one rank of a
+  /// distributed run (parallel/domain_exchange.hpp): every rank builds the
+  /// case, keeps its share of the cells and integrates only its particles.
+  explicit Simulation(const RunConfig& config, Communicator* comm = nullptr);
   /// Any case (tests: tanks, blobs, single particles).
-  Simulation(const RunConfig& config, Case c, const PhysicsParams& phys);
+  Simulation(const RunConfig& config, Case c, const PhysicsParams& phys, Communicator* comm = nullptr);
 
   /// Advances one time step.
   void step();
@@ -46,22 +52,29 @@ class Simulation {
 
   const RunConfig& config() const { return config_; }
   const PhysicsParams& physics() const { return phys_; }
+  /// This rank's particles [0, owned()), then its ghosts (distributed runs).
   const ParticleSet& particles() const { return ps_; }
   ParticleSet& particles() { return ps_; }
   const Case& case_info() const { return case_; }
   double time() const { return time_; }
   double last_dt() const { return dt_; }
   long steps_done() const { return steps_; }
+  /// Particles lost so far, over all ranks.
   std::size_t lost() const { return lost_; }
+  /// Particles this rank integrates: all of them in a serial run.
+  std::size_t owned() const { return domain_ ? domain_->owned() : ps_.size(); }
+  /// The distributed run's exchange (null in a serial run).
+  const DomainExchange* domain() const { return domain_.get(); }
   const PhaseTimes& phase_times() const { return times_; }
   const NeighbourStats& neighbour_stats() const { return stats_; }
   /// Bytes of the neighbour structures (gridding, ordering, reordering, lists).
   std::size_t neighbour_bytes() const;
   /// Total mass, summed in id order: reordering permutes memory, and a sum in
   /// memory order would change its last bits from step to step (masses never
-  /// change, so this sum is exactly the same at every step).
+  /// change, so this sum is exactly the same at every step). Distributed: over
+  /// all ranks, the same bits as the serial run (every rank must call it).
   double total_mass() const;
-  /// Sum of m v over fluid particles.
+  /// Sum of m v over fluid particles (distributed: over all ranks; every rank must call it).
   std::array<double, 3> momentum() const;
   /// Largest |v| over fluid particles (after the last step).
   double max_speed() const { return max_speed_; }
@@ -89,7 +102,7 @@ class Simulation {
   static constexpr std::uint64_t kShuffleSeed = 20111;
 
  private:
-  void init();
+  void init(Communicator* comm);
   /// What the gridders need to know of the case (gridder C sizes its rows from it).
   GridderOptions gridder_options() const;
   /// A ParticleGrid over this case's domain (and periodic y) with the configured order and gridder.
@@ -111,6 +124,7 @@ class Simulation {
   PhysicsParams phys_;
   Case case_;
   ParticleSet& ps_;
+  std::unique_ptr<DomainExchange> domain_;  // distributed runs only
   std::unique_ptr<ParticleGrid> grid_;
   CellLinkedList cll_;
   VerletList verlet_;

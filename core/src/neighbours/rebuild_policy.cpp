@@ -14,9 +14,14 @@ bool RebuildPolicy::reorder_now(const NeighbourStats& stats) const {
 }
 
 void RebuildPolicy::prepare(ParticleSet& ps, ParticleGrid& grid, VerletList& verlet, const FlowState& flow,
-                            NeighbourStats& stats) {
+                            NeighbourStats& stats, DistributedNeighbours* dist) {
+  auto build_grid = [&](double cell) {
+    if (dist) dist->exchange_particles(ps, cell);
+    const bool permuted = grid.build(ps, cell, reorder_now(stats), dist ? dist->owned() : ParticleGrid::kAllOwned);
+    if (dist) dist->built(grid, permuted, ps);
+  };
   if (settings_.list == ListKind::cll) {
-    grid.build(ps, 2.0 * flow.h, reorder_now(stats));
+    build_grid(2.0 * flow.h);
     ++stats.builds;
     stats.max_steps_per_list = 1;
     return;
@@ -28,11 +33,11 @@ void RebuildPolicy::prepare(ParticleSet& ps, ParticleGrid& grid, VerletList& ver
   if (!rebuild && settings_.list == ListKind::vlc)
     rebuild = list_age_ >= static_cast<std::uint64_t>(settings_.list_steps);  // VL_C: exactly C steps
   else if (!rebuild)
-    rebuild = moved_more_than_half_skin(ps);  // VL_X
+    rebuild = dist ? dist->any_rank(moved_more_than_half_skin(ps)) : moved_more_than_half_skin(ps);  // VL_X
   if (rebuild) {
     skin_ = skin(flow);
     const double cell = 2.0 * flow.h + skin_;  // 2H = 2h + dh
-    grid.build(ps, cell, reorder_now(stats));
+    build_grid(cell);
     verlet.build(grid, ps, cell * cell, settings_.threads, settings_.build);
     if (settings_.list == ListKind::vlx) {  // positions after any reordering: indices match the list's
       x_build_.assign(ps.x.begin(), ps.x.end());
@@ -48,6 +53,8 @@ void RebuildPolicy::prepare(ParticleSet& ps, ParticleGrid& grid, VerletList& ver
     stats.list_bytes = verlet.list_bytes();
     stats.max_list_bytes = std::max(stats.max_list_bytes, stats.list_bytes);
     if (forced) ++stats.forced_rebuilds;
+  } else if (dist) {
+    dist->refresh_ghosts(ps);
   }
   ++list_age_;
   ++stats.list_steps;

@@ -25,7 +25,14 @@ class ParticleGrid {
   /// Grids `ps` with cells of side `cell_size`; when `reorder` is set, first
   /// permutes every particle array into cell order (out particles last) and
   /// grids again. Returns true when particles were permuted.
-  bool build(ParticleSet& ps, double cell_size, bool reorder);
+  /// A distributed run (parallel/domain_exchange.hpp) passes `owned`: particles
+  /// [owned, size) are ghosts, and reordering keeps them after the owned ones
+  /// (owned in cell order, owned out ones, then ghosts in cell order), so that
+  /// the integrator's particles stay [0, owned).
+  bool build(ParticleSet& ps, double cell_size, bool reorder, std::size_t owned = kAllOwned);
+  static constexpr std::size_t kAllOwned = ~std::size_t{0};
+  /// New index -> old index of the last build that reordered.
+  const std::vector<std::uint32_t>& permutation() const { return permutation_; }
 
   const CellGrid& grid() const { return grid_; }
   const CellOrder& order() const { return *order_; }

@@ -21,6 +21,7 @@
 #include "sphnl/neighbours/neighbour_stats.hpp"
 #include "sphnl/neighbours/particle_grid.hpp"
 #include "sphnl/neighbours/verlet_list.hpp"
+#include "sphnl/parallel/distributed_neighbours.hpp"
 #include "sphnl/particles.hpp"
 
 namespace sphnl {
@@ -51,7 +52,11 @@ class RebuildPolicy {
   /// Phase 1 of a step: grids `ps` into `grid` (CLL) or decides whether the
   /// Verlet list `verlet` is still valid and rebuilds it when not. Counts
   /// builds, list steps, forced rebuilds and the list's size into `stats`.
-  void prepare(ParticleSet& ps, ParticleGrid& grid, VerletList& verlet, const FlowState& flow, NeighbourStats& stats);
+  /// A distributed run passes `dist`: the decision is taken on every rank alike
+  /// (flow.lost is the global count), particles and ghosts are exchanged before
+  /// each build and the ghosts refreshed between builds.
+  void prepare(ParticleSet& ps, ParticleGrid& grid, VerletList& verlet, const FlowState& flow, NeighbourStats& stats,
+               DistributedNeighbours* dist = nullptr);
 
   /// dh of a Verlet list that should live list_steps steps (§2.5).
   double skin(const FlowState& flow) const;
