@@ -1,7 +1,6 @@
 #include "sphnl/neighbours/neighbour_search.hpp"
 
 #include <algorithm>
-#include <cfloat>
 #include <stdexcept>
 #include <string>
 
@@ -52,9 +51,9 @@ NeighbourSearch::NeighbourSearch(const SearchOptions& options)
 NeighbourSearch::~NeighbourSearch() = default;
 
 std::size_t NeighbourSearch::bytes() const {
-  const std::size_t u32 = keys_.capacity() + permutation_.capacity() + cell_start_.capacity() + gather_index_.capacity();
+  const std::size_t u32 = cell_start_.capacity() + gather_index_.capacity();
   const std::size_t f64 = xs_.capacity() + ys_.capacity() + zs_.capacity() + gx_.capacity() + gy_.capacity() + gz_.capacity();
-  return gridder_->bytes() + order_->bytes() + u32 * sizeof(std::uint32_t) + f64 * sizeof(double);
+  return gridder_->bytes() + order_->bytes() + sort_.bytes() + u32 * sizeof(std::uint32_t) + f64 * sizeof(double);
 }
 
 void NeighbourSearch::build(std::span<const double> x, std::span<const double> y, std::span<const double> z,
@@ -79,40 +78,28 @@ void NeighbourSearch::build(std::span<const double> x, std::span<const double> y
     }
     for (int d = 0; d < 3; ++d) max_abs = std::max({max_abs, std::fabs(box.lo[d]), std::fabs(box.hi[d])});
   }
-  // Cell side: R plus a margin covering the round-off of (x - lo) / side, so a
-  // pair the distance test accepts is never two cells apart. Cells are
-  // enlarged (still correct, more candidates) when a sparse cloud would need
-  // far more cells than points.
-  double side = radius * (1 + 1e-9) + 16 * DBL_EPSILON * max_abs;
-  const double max_cells = std::max(64.0, 2.0 * static_cast<double>(n));
-  while (CellGrid::cells_needed(box, side) > max_cells) side *= 1.25;
-  bool same_grid = side == grid_.cell_size;
-  for (int d = 0; d < 3; ++d) same_grid = same_grid && box.lo[d] == grid_.box.lo[d] && box.hi[d] == grid_.box.hi[d];
-  if (!same_grid) {
-    grid_ = CellGrid(box, side);
-    order_->setup(grid_);
-  }
+  // Cells of side R, widened by the round-off of the cell coordinate so a
+  // pair the distance test accepts is never two cells apart, and enlarged
+  // (still correct, more candidates) when a sparse cloud would need far more
+  // cells than points.
+  GridRequest request;
+  request.box = box;
+  request.min_side = radius;
+  request.roundoff_margin = true;
+  request.max_abs = max_abs;
+  request.max_cells = std::max(64.0, 2.0 * static_cast<double>(n));
+  fit_grid(request, grid_, *order_);
 
   // Cell index of every point (§2.4), then particles in cells (§2.3).
-  keys_.resize(n);
-  order_->compute_keys(grid_, x, y, z, nullptr, keys_);
-  const std::uint32_t num_keys = order_->num_keys();
-  gridder_->build(keys_, num_keys);
-
+  sort_.place(grid_, *order_, *gridder_, x, y, z, nullptr);
   if (options_.reorder) {
     // Reordering: coordinates permuted into cell order; then only the first
     // particle of each cell needs to be known (§2.4).
-    gridder_->cell_order_permutation(permutation_);
-    gather_by<double>(x, permutation_, xs_);
-    gather_by<double>(y, permutation_, ys_);
-    gather_by<double>(z, permutation_, zs_);
-    cell_start_.resize(std::size_t{num_keys} + 1);
-    std::uint32_t next_key = 0;
-    for (std::size_t k = 0; k < n; ++k) {
-      const std::uint32_t key = keys_[permutation_[k]];
-      while (next_key <= key) cell_start_[next_key++] = static_cast<std::uint32_t>(k);
-    }
-    while (next_key <= num_keys) cell_start_[next_key++] = static_cast<std::uint32_t>(n);
+    sort_.sort(*gridder_);
+    gather_by<double>(x, sort_.permutation(), xs_);
+    gather_by<double>(y, sort_.permutation(), ys_);
+    gather_by<double>(z, sort_.permutation(), zs_);
+    sort_.cell_starts(order_->num_keys(), cell_start_);
   } else {
     const std::size_t room = 27 * std::size_t{gridder_->max_cell_count()} + kFilterSlack;
     if (gather_index_.size() < room) {
@@ -146,7 +133,7 @@ void NeighbourSearch::search_sorted(double radius2, NeighbourLists& out) {
   const double* x = xs_.data();
   const double* y = ys_.data();
   const double* z = zs_.data();
-  const std::uint32_t* id = permutation_.data();
+  const std::uint32_t* id = sort_.permutation().data();
   std::uint32_t* point = out.point_.data();
   std::uint64_t* offsets = out.offsets_.data();
   std::uint64_t used = 0;

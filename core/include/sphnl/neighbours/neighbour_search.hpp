@@ -24,6 +24,7 @@
 #include "sphnl/grid.hpp"
 #include "sphnl/gridders/gridder.hpp"
 #include "sphnl/kinds.hpp"
+#include "sphnl/neighbours/cell_sort.hpp"
 #include "sphnl/neighbours/distance.hpp"
 #include "sphnl/neighbours/uninit_buffer.hpp"
 #include "sphnl/orderings/cell_order.hpp"
@@ -100,9 +101,9 @@ class NeighbourSearch {
   CellGrid grid_;
   std::unique_ptr<CellOrder> order_;
   std::unique_ptr<Gridder> gridder_;
-  std::vector<std::uint32_t> keys_;
-  // reorder on: coordinates, input index and cell start in cell order
-  std::vector<std::uint32_t> permutation_, cell_start_;
+  CellSort sort_;  // keys, gridder, and with reorder on the permutation into cell order
+  // reorder on: coordinates and cell start in cell order
+  std::vector<std::uint32_t> cell_start_;
   std::vector<double> xs_, ys_, zs_;
   // reorder off: the 27 cells of one home cell, gathered
   std::vector<std::uint32_t> gather_index_;

@@ -1,0 +1,77 @@
+#include "sphnl/neighbours/cell_sort.hpp"
+
+#include <cfloat>
+#include <stdexcept>
+#include <string>
+
+namespace sphnl {
+
+namespace {
+
+/// The grid `request` would give is the one `grid` already is (a periodic
+/// grid moves box.hi[1] to lo + period, so y's upper bound is not compared).
+bool same_grid(const GridRequest& request, double side, const CellGrid& grid) {
+  if (side != grid.cell_size || request.period_y != grid.period_y) return false;
+  for (int d = 0; d < 3; ++d) {
+    if (request.box.lo[d] != grid.box.lo[d]) return false;
+    if (!(d == 1 && request.period_y > 0) && request.box.hi[d] != grid.box.hi[d]) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+bool fit_grid(const GridRequest& request, CellGrid& grid, CellOrder& order) {
+  double side = request.min_side;
+  if (request.roundoff_margin) side = side * (1 + 1e-9) + 16 * DBL_EPSILON * request.max_abs;
+  if (request.max_cells > 0)
+    while (CellGrid::cells_needed(request.box, side) > request.max_cells) side *= 1.25;
+  if (same_grid(request, side, grid)) return false;
+  grid = CellGrid(request.box, side, request.period_y);
+  if (request.period_y > 0 && grid.n[1] < CellGrid::kMinPeriodicCells)
+    throw std::invalid_argument("a periodic y of " + std::to_string(request.period_y) + " m holds " +
+                                std::to_string(grid.n[1]) + " cells of " + std::to_string(side) +
+                                " m; it must hold at least 3: widen the slab to >= 3 cell sizes (6h)");
+  order.setup(grid);
+  return true;
+}
+
+void CellSort::place(const CellGrid& grid, const CellOrder& order, Gridder& gridder, std::span<const double> x,
+                     std::span<const double> y, std::span<const double> z, const ParticleType* type) {
+  keys_.resize(x.size());
+  order.compute_keys(grid, x, y, z, type, keys_);
+  gridder.build(keys_, order.num_keys());
+}
+
+void CellSort::sort(const Gridder& gridder) {
+  gridder.cell_order_permutation(permutation_);
+  if (permutation_.size() == keys_.size()) return;
+  for (std::size_t i = 0; i < keys_.size(); ++i)
+    if (keys_[i] == kNoCell) permutation_.push_back(static_cast<std::uint32_t>(i));
+}
+
+void CellSort::cell_starts(std::uint32_t num_keys, std::vector<std::uint32_t>& start) const {
+  start.resize(std::size_t{num_keys} + 1);
+  std::uint32_t next_key = 0;
+  std::size_t k = 0;
+  for (; k < permutation_.size(); ++k) {
+    const std::uint32_t key = keys_[permutation_[k]];
+    if (key == kNoCell) break;  // the out points, last
+    while (next_key <= key) start[next_key++] = static_cast<std::uint32_t>(k);
+  }
+  while (next_key <= num_keys) start[next_key++] = static_cast<std::uint32_t>(k);
+}
+
+void CellSort::permute_keys() {
+  scratch_.resize(keys_.size());
+  for (std::size_t k = 0; k < keys_.size(); ++k) scratch_[k] = keys_[permutation_[k]];
+  keys_.swap(scratch_);
+}
+
+std::span<const std::uint32_t> CellSort::inverse_permutation() {
+  scratch_.resize(permutation_.size());
+  for (std::size_t k = 0; k < permutation_.size(); ++k) scratch_[permutation_[k]] = static_cast<std::uint32_t>(k);
+  return scratch_;
+}
+
+}  // namespace sphnl
