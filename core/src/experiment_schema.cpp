@@ -27,6 +27,16 @@ std::string positive_number(const json& v) {
   return v.is_number() && std::isfinite(v.get<double>()) && v.get<double>() > 0 ? "" : "a number > 0";
 }
 
+/// A check accepting exactly `allowed` (string values).
+std::function<std::string(const json&)> one_of(std::vector<std::string> allowed) {
+  return [allowed](const json& v) {
+    if (v.is_string() && std::find(allowed.begin(), allowed.end(), v.get<std::string>()) != allowed.end()) return std::string();
+    std::string list;
+    for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+    return "one of " + list;
+  };
+}
+
 const std::vector<Axis>& axes() {
   static const std::vector<Axis> table = {
       {"n", "particles", {"step", "cellindex", "search"}, {"step", "cellindex", "search"}, {}},
@@ -41,6 +51,12 @@ const std::vector<Axis>& axes() {
       {"h_coefficient", "h_coefficient", {"step"}, {}, {}},
       // simulated time of the developed flow the window starts from (s)
       {"flow_time", "", {"step"}, {}, positive_number},
+      // the search family's peers and clouds (benchmarks/search_benchmark.cpp;
+      // a sweep without them means sphnl, lattice, generated, warm)
+      {"impl", "", {"search"}, {}, one_of({"sphnl", "nanoflann"})},
+      {"cloud", "", {"search"}, {}, one_of({"lattice", "random"})},
+      {"memory_order", "", {"search"}, {}, one_of({"generated", "shuffled"})},
+      {"call", "", {"search"}, {}, one_of({"warm", "first"})},
   };
   return table;
 }

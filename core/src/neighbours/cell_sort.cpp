@@ -1,5 +1,7 @@
 #include "sphnl/neighbours/cell_sort.hpp"
 
+#include <omp.h>
+
 #include <cfloat>
 #include <stdexcept>
 #include <string>
@@ -37,9 +39,21 @@ bool fit_grid(const GridRequest& request, CellGrid& grid, CellOrder& order) {
 }
 
 void CellSort::place(const CellGrid& grid, const CellOrder& order, Gridder& gridder, std::span<const double> x,
-                     std::span<const double> y, std::span<const double> z, const ParticleType* type) {
-  keys_.resize(x.size());
-  order.compute_keys(grid, x, y, z, type, keys_);
+                     std::span<const double> y, std::span<const double> z, const ParticleType* type, int threads) {
+  const std::size_t n = x.size();
+  keys_.resize(n);
+  if (threads <= 1) {
+    order.compute_keys(grid, x, y, z, type, keys_);
+  } else {
+#pragma omp parallel num_threads(threads)
+    {
+      const std::size_t t = static_cast<std::size_t>(omp_get_thread_num());
+      const std::size_t team = static_cast<std::size_t>(omp_get_num_threads());
+      const std::size_t b = n * t / team, count = n * (t + 1) / team - b;
+      order.compute_keys(grid, x.subspan(b, count), y.subspan(b, count), z.subspan(b, count),
+                         type ? type + b : nullptr, std::span<std::uint32_t>(keys_).subspan(b, count));
+    }
+  }
   gridder.build(keys_, order.num_keys());
 }
 
@@ -51,15 +65,11 @@ void CellSort::sort(const Gridder& gridder) {
 }
 
 void CellSort::cell_starts(std::uint32_t num_keys, std::vector<std::uint32_t>& start) const {
-  start.resize(std::size_t{num_keys} + 1);
-  std::uint32_t next_key = 0;
-  std::size_t k = 0;
-  for (; k < permutation_.size(); ++k) {
-    const std::uint32_t key = keys_[permutation_[k]];
-    if (key == kNoCell) break;  // the out points, last
-    while (next_key <= key) start[next_key++] = static_cast<std::uint32_t>(k);
-  }
-  while (next_key <= num_keys) start[next_key++] = static_cast<std::uint32_t>(k);
+  // Count per key, shifted by one, then a running sum.
+  start.assign(std::size_t{num_keys} + 1, 0);
+  for (const std::uint32_t key : keys_)
+    if (key != kNoCell) ++start[std::size_t{key} + 1];
+  for (std::uint32_t k = 0; k < num_keys; ++k) start[k + 1] += start[k];
 }
 
 void CellSort::permute_keys() {

@@ -50,16 +50,17 @@ bool fit_grid(const GridRequest& request, CellGrid& grid, CellOrder& order);
 class CellSort {
  public:
   /// Keys of the points (x[i], y[i], z[i]) in `grid` (kNoCell where `type` is
-  /// given and type[i] is out), then `gridder` built on them.
+  /// given and type[i] is out; computed by `threads` threads), then `gridder`
+  /// built on them.
   void place(const CellGrid& grid, const CellOrder& order, Gridder& gridder, std::span<const double> x,
-             std::span<const double> y, std::span<const double> z, const ParticleType* type);
+             std::span<const double> y, std::span<const double> z, const ParticleType* type, int threads = 1);
   /// Reordering (§2.4): permutation() becomes new index -> old index (gridded
   /// points in cell-key order, each cell's in increasing index, then the out
   /// points). keys() stay in input order until permute_keys().
   void sort(const Gridder& gridder);
-  /// After sort(), keys still in input order: start[k] = first sorted point
-  /// of key k, for every key and one past the last (num_keys + 1 entries;
-  /// out points are not counted).
+  /// After place(): start[k] = the points of keys below k (the first point of
+  /// key k in cell order), for every key and one past the last (num_keys + 1
+  /// entries; out points are not counted).
   void cell_starts(std::uint32_t num_keys, std::vector<std::uint32_t>& start) const;
   /// After sort(): keys() put into cell order (for a caller that permuted its
   /// own arrays and keeps the keys beside them).
