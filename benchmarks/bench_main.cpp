@@ -52,8 +52,10 @@ sphnl::MemoryEstimate sweep_memory(const std::string& family, const json& sweep)
     const sphnl::RunConfig run = sb::run_config_of(p);
     const long n = run.particles;
     if (family == "search") {
-      // full lists of a cubic lattice with R = 2.6 spacings: 4/3 pi 2.6^3 = 74 entries a point
-      e = sphnl::estimate_search_memory(static_cast<std::uint64_t>(n), static_cast<std::uint64_t>(n) * 74);
+      // full lists of a cubic lattice with R = 2.6 spacings: 4/3 pi 2.6^3 = 74 entries a point;
+      // nanoflann's rows are collected per thread, then joined: twice the entries
+      const bool peer = p.count("impl") && p.at("impl") == "nanoflann";
+      e = sphnl::estimate_search_memory(static_cast<std::uint64_t>(n), static_cast<std::uint64_t>(n) * 74 * (peer ? 2 : 1));
     } else {
       e = sphnl::estimate_run_memory(run);
       e.bytes += static_cast<double>(n) * 200;  // the cached developed flow beside the timed copy

@@ -1,54 +1,214 @@
-// The `search` family: `sphnl neighbours` as a neighbour-search library. Full
-// neighbour lists (every j != i with r < R) of a simple cubic lattice of
-// `particles` points with R = 2.6 spacings, the layout the search's speed is quoted for (docs/FINDINGS.md).
+// The `search` family: `sphnl neighbours` as a neighbour-search library, and
+// its peers. Full neighbour lists (every j != i with r < R, R = 2.6 spacings)
+// of a cloud of `particles` points (benchmarks/peers/clouds.hpp), built by sphnl's
+// engine or by a peer (impl), warm (buffers of the previous call reused) or as
+// a first call (call: first; see run_first below). Before anything is timed,
+// every configuration's pair set is checked against the one sphnl's engine
+// finds on the same cloud (an order-independent checksum of the entries): a
+// difference ends the benchmark with an error naming both implementations,
+// and nothing is reported.
+#include <malloc.h>
+
 #include <cmath>
+#include <map>
+#include <memory>
+#include <tuple>
 
 #include "bench_common.hpp"
 #include "bench_guard.hpp"
+#include "peers/clouds.hpp"
 #include "sphnl/neighbours/neighbour_search.hpp"
+#include "sphnl/neighbours/pair_checksum.hpp"
+#include "sphnl/timer.hpp"
+#ifdef SPHNL_HAVE_NANOFLANN
+#include "peers/nanoflann_lists.hpp"
+#endif
 
 namespace sphnl::bench {
 
 using nlohmann::json;
 
+namespace {
+
+constexpr double kRadius = 2.6;  // spacings: 4/3 pi 2.6^3 = 74 neighbours a point
+
+/// The axes of the family, in name order, with the value a sweep without the
+/// axis means (the first five are required; older results have only those).
+const std::vector<std::pair<std::string, json>>& search_axes() {
+  static const std::vector<std::pair<std::string, json>> axes = {
+      {"particles", nullptr}, {"gridder", nullptr},          {"cell_order", nullptr}, {"reorder", nullptr},
+      {"threads", nullptr},   {"impl", "sphnl"},             {"cloud", "lattice"},
+      {"memory_order", "generated"}, {"call", "warm"}};
+  return axes;
+}
+
+json axis_value(const Point& p, const std::string& axis) {
+  if (p.count(axis)) return p.at(axis);
+  for (const auto& [name, fallback] : search_axes())
+    if (name == axis) return fallback;
+  throw std::logic_error("unknown search axis " + axis);
+}
+
+/// One cloud and the pair set sphnl's engine finds on it (one thread, the
+/// default options): the reference every configuration is checked against.
+struct CloudCase {
+  peers::Cloud cloud;
+  PairChecksum reference;
+};
+
+PairChecksum checksum_of(const NeighbourLists& lists) {
+  PairChecksum c;
+  for (std::size_t r = 0; r < lists.num_rows(); ++r) {
+    const auto row = lists.row(r);
+    c.add_row(lists.point(r), row.data(), row.size());
+  }
+  return c;
+}
+
+const CloudCase& cloud_case(peers::CloudKind kind, peers::MemoryOrder order, long n) {
+  static std::map<std::tuple<int, int, long>, std::unique_ptr<CloudCase>> cache;
+  auto& slot = cache[{static_cast<int>(kind), static_cast<int>(order), n}];
+  if (!slot) {
+    auto c = std::make_unique<CloudCase>();
+    c->cloud = peers::make_cloud(kind, order, n);
+    NeighbourSearch reference;
+    NeighbourLists lists;
+    reference.run(c->cloud.x, c->cloud.y, c->cloud.z, kRadius, lists);
+    c->reference = checksum_of(lists);
+    slot = std::move(c);
+  }
+  return *slot;
+}
+
+/// What one call of an implementation reports.
+struct CallResult {
+  double seconds = 0;
+  std::uint64_t entries = 0;
+  double bytes = 0;
+  double s_build = -1, s_search = -1;  // sphnl only
+};
+
+/// One implementation on one cloud: `call(fresh)` builds the full lists once,
+/// into new objects and never-touched memory when `fresh`.
+class Runner {
+ public:
+  virtual ~Runner() = default;
+  virtual CallResult call(bool fresh) = 0;
+  virtual PairChecksum checksum() const = 0;
+};
+
+class SphnlRunner : public Runner {
+ public:
+  SphnlRunner(const SearchOptions& so, const peers::Cloud& cloud) : so_(so), cloud_(cloud) {}
+  CallResult call(bool fresh) override {
+    if (fresh) {
+      search_ = std::make_unique<NeighbourSearch>(so_);
+      lists_ = std::make_unique<NeighbourLists>();
+    }
+    Stopwatch sw;
+    search_->run(cloud_.x, cloud_.y, cloud_.z, kRadius, *lists_);
+    CallResult r;
+    r.seconds = sw.lap();
+    r.entries = lists_->num_entries();
+    r.bytes = static_cast<double>(search_->bytes() + lists_->bytes());
+    r.s_build = search_->times().build;
+    r.s_search = search_->times().search;
+    return r;
+  }
+  PairChecksum checksum() const override { return checksum_of(*lists_); }
+
+ private:
+  SearchOptions so_;
+  const peers::Cloud& cloud_;
+  std::unique_ptr<NeighbourSearch> search_ = std::make_unique<NeighbourSearch>(so_);
+  std::unique_ptr<NeighbourLists> lists_ = std::make_unique<NeighbourLists>();
+};
+
+#ifdef SPHNL_HAVE_NANOFLANN
+class NanoflannRunner : public Runner {
+ public:
+  NanoflannRunner(int threads, const peers::Cloud& cloud) : threads_(threads), cloud_(cloud) {}
+  CallResult call(bool fresh) override {
+    if (fresh) lists_ = std::make_unique<peers::PeerLists>();
+    Stopwatch sw;
+    peers::nanoflann_full_lists(cloud_.x, cloud_.y, cloud_.z, kRadius, threads_, *lists_);
+    CallResult r;
+    r.seconds = sw.lap();
+    r.entries = lists_->entries.size();
+    r.bytes = static_cast<double>(lists_->entries.capacity() * sizeof(std::uint32_t) +
+                                  lists_->offsets.capacity() * sizeof(std::uint64_t));
+    return r;
+  }
+  PairChecksum checksum() const override { return lists_->checksum(); }
+
+ private:
+  int threads_;
+  const peers::Cloud& cloud_;
+  std::unique_ptr<peers::PeerLists> lists_ = std::make_unique<peers::PeerLists>();
+};
+#endif
+
+std::unique_ptr<Runner> make_runner(const std::string& impl, const SearchOptions& so, int threads,
+                                    const peers::Cloud& cloud) {
+  if (impl == "sphnl") return std::make_unique<SphnlRunner>(so, cloud);
+#ifdef SPHNL_HAVE_NANOFLANN
+  if (impl == "nanoflann") return std::make_unique<NanoflannRunner>(threads, cloud);
+#else
+  (void)threads;
+  if (impl == "nanoflann")
+    throw std::runtime_error("this sphnl_bench was built without nanoflann (install libnanoflann-dev and "
+                             "reconfigure: CMake then builds the peer rows)");
+#endif
+  throw std::invalid_argument("impl: '" + impl + "'; allowed: sphnl, nanoflann");
+}
+
+}  // namespace
+
 void register_search_benchmarks(const json& sweep) {
-  const std::vector<std::string> axes = {"particles", "gridder", "cell_order", "reorder", "threads"};
+  std::vector<std::string> axes;
+  for (const auto& a : search_axes()) axes.push_back(a.first);
   for (const Point& p : cross_product(sweep, axes)) {
     SearchOptions so;
-    const RunConfig cfg = run_config_of(p);
+    const RunConfig cfg = run_config_of(p);  // the config keys of the point; impl, cloud, ... are the bench's own
     so.gridder = cfg.gridder;
     so.order = cfg.cell_order;
     so.reorder = cfg.reorder;
-    const long n = cfg.particles;  // points of the cubic lattice (rounded to a cube)
+    so.threads = cfg.threads;
+    const long n = cfg.particles;
+    const std::string impl = axis_value(p, "impl").get<std::string>();
+    const peers::CloudKind kind = peers::cloud_kind(axis_value(p, "cloud").get<std::string>());
+    const peers::MemoryOrder order = peers::memory_order(axis_value(p, "memory_order").get<std::string>());
+    const std::string call = axis_value(p, "call").get<std::string>();
+    if (call != "warm" && call != "first") throw std::invalid_argument("call: '" + call + "'; allowed: warm, first");
+    const bool first = call == "first";
     const std::string name = benchmark_name("search", p, axes);
-    benchmark::RegisterBenchmark(name.c_str(), [so, n, name](benchmark::State& st) {
-     guarded(name, [&] {
-      const long sequence = next_run_sequence();
-      const long side = std::lround(std::cbrt(static_cast<double>(n)));
-      std::vector<double> x, y, z;
-      for (long k = 0; k < side; ++k)
-        for (long j = 0; j < side; ++j)
-          for (long i = 0; i < side; ++i) {
-            x.push_back(static_cast<double>(i));
-            y.push_back(static_cast<double>(j));
-            z.push_back(static_cast<double>(k));
-          }
-      NeighbourSearch search(so);
-      NeighbourLists lists;
-      search.run(x, y, z, 2.6, lists);  // warm-up: first touch of the list memory
-      double seconds = 0;
-      for (auto _ : st) {
-        search.run(x, y, z, 2.6, lists);
-        seconds = search.times().build + search.times().search;
-      }
-      st.counters["n_particles"] = static_cast<double>(x.size());
-      st.counters["entries"] = static_cast<double>(lists.num_entries());
-      st.counters["entries_per_s"] = static_cast<double>(lists.num_entries()) / seconds;
-      st.counters["s_build"] = search.times().build;
-      st.counters["s_search"] = search.times().search;
-      st.counters["bytes"] = static_cast<double>(search.bytes() + lists.bytes());
-      st.counters["run_sequence"] = static_cast<double>(sequence);
-     });
+    benchmark::RegisterBenchmark(name.c_str(), [=](benchmark::State& st) {
+      guarded(name, [&] {
+        const long sequence = next_run_sequence();
+        const CloudCase& cc = cloud_case(kind, order, n);
+        const std::unique_ptr<Runner> runner = make_runner(impl, so, cfg.threads, cc.cloud);
+        runner->call(false);  // untimed: the pair-set check, and the warm state of call: warm
+        require_same_pairs(impl + " (" + name + ")", runner->checksum(), "sphnl (engine, 1 thread)", cc.reference);
+        CallResult r;
+        for (auto _ : st) {
+          // call: first stands in for the first call of a fresh process: new
+          // objects, and every free page the allocator holds given back to the
+          // kernel first (malloc_trim), so each page the call writes is a
+          // fresh one and its fault is timed (docs/CONTRACTS.md).
+          if (first) malloc_trim(0);
+          r = runner->call(first);
+        }
+        st.counters["n_particles"] = static_cast<double>(cc.cloud.size());
+        st.counters["entries"] = static_cast<double>(r.entries);
+        st.counters["entries_per_s"] = static_cast<double>(r.entries) / r.seconds;
+        st.counters["s_call"] = r.seconds;
+        if (r.s_build >= 0) {
+          st.counters["s_build"] = r.s_build;
+          st.counters["s_search"] = r.s_search;
+        }
+        st.counters["bytes"] = r.bytes;
+        st.counters["run_sequence"] = static_cast<double>(sequence);
+      });
     })->Unit(benchmark::kMillisecond)->UseRealTime();
   }
 }

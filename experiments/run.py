@@ -81,6 +81,15 @@ def step_seconds(p):
     return t / (0.85 * threads) if threads > 1 else t
 
 
+def search_seconds(p):
+    """Cost model of one repetition of a `search` point: the timed list build
+    (sphnl 0.2 us a point on one core, nanoflann about 8x that), plus the
+    untimed build each repetition starts with (the pair-set check)."""
+    one = 2e-7 * p["particles"] * (8 if p.get("impl", "sphnl") == "nanoflann" else 1)
+    threads = p.get("threads", 1)
+    return 2 * (one / (0.9 * threads) if threads > 1 else one)
+
+
 ROUND_OVERHEAD_S = 0.3  # bench start, snapshot load, JSON
 
 
@@ -90,9 +99,10 @@ def round_seconds(exp, size):
     if exp["benchmark"] == "step":
         window = exp["window_steps"][size]
         per = [step_seconds(p) * window for p in R.sweep_points(exp, size)]
-    else:  # cellindex: >= 2e6 cell keys per iteration; search: one list build
-        per = [0.02 if exp["benchmark"] == "cellindex" else 2e-7 * p["particles"]
-               for p in R.sweep_points(exp, size)]
+    elif exp["benchmark"] == "search":
+        per = [search_seconds(p) for p in R.sweep_points(exp, size)]
+    else:  # cellindex: >= 2e6 cell keys per iteration
+        per = [0.02 for p in R.sweep_points(exp, size)]
     return sum(t * (reps + 1) for t in per) + ROUND_OVERHEAD_S
 
 

@@ -24,9 +24,9 @@ FAMILY_KEYS = {
              "pair_loop", "simd", "skip_boundary_pairs", "gridder_a_variant", "initial_order",
              "extra_loops"],
     "cellindex": ["cell_order", "particles"],
-    "search": ["particles", "gridder", "cell_order", "reorder", "threads"],
+    "search": ["particles", "gridder", "cell_order", "reorder", "threads",
+               "impl", "cloud", "memory_order", "call"],
 }
-STEP_AXES = FAMILY_KEYS["step"][:8]            # required axes of a "step" sweep
 # The flow time (s) a step window starts from when the sweep has no flow_time axis.
 DEFAULT_FLOW_TIME = 0.35
 # The vocabulary before the run-config keys were used everywhere, kept in this
@@ -37,6 +37,22 @@ DEFAULT_FLOW_TIME = 0.35
 OLD_AXES = {"n": "particles", "order": "cell_order", "ns": "list_steps"}  # old sweep axis -> now
 OLD_NAME_KEYS = {**OLD_AXES, "hcoef": "h_coefficient"}  # old name segment key -> now
 OLD_COUNTERS = {"n": "n_particles"}            # old counter -> now (particles simulated)
+# The value an optional axis has where a sweep (and so a benchmark name) lacks
+# it: the one table of defaults, read by validation and by the loader, so
+# results written before an axis existed still read (docs/CONTRACTS.md §2).
+AXIS_DEFAULTS = {
+    "step": {"lattice": "bcc", "h_coefficient": 0.866025, "flow_time": DEFAULT_FLOW_TIME,
+             "pair_loop": "gather", "simd": "on", "skip_boundary_pairs": 0, "gridder_a_variant": "occupied",
+             "initial_order": "generated", "extra_loops": 0},
+    "cellindex": {},
+    "search": {"impl": "sphnl", "cloud": "lattice", "memory_order": "generated", "call": "warm"},
+}
+# Axes filled in from AXIS_DEFAULTS when a name lacks them (lattice and h
+# coefficient stay absent in step rows, as the figures and claims expect).
+DEFAULTED_ON_LOAD = {"step": ("flow_time",), "search": ("impl", "cloud", "memory_order", "call")}
+# Axes a sweep must list: every axis of the family without a default.
+REQUIRED_AXES = {family: [k for k in keys if k not in AXIS_DEFAULTS[family]]
+                 for family, keys in FAMILY_KEYS.items()}
 # Segments Google Benchmark itself may append to a name (->Iterations() etc.).
 GB_SEGMENT_KEYS = {"iterations", "repetitions", "min_time", "min_warmup_time"}
 # Top-level fields of a Google Benchmark 1.7.1 entry that are not user counters.
@@ -149,7 +165,7 @@ def validate_experiment(exp, path):
         if old:
             raise ResultsError(f"{where}: sweep.{size}: sweep axis {', '.join(old)} (sweep "
                                "axes are the run-config keys of README \"Configuration\")")
-        need = STEP_AXES if exp["benchmark"] == "step" else FAMILY_KEYS[exp["benchmark"]]
+        need = REQUIRED_AXES[exp["benchmark"]]
         missing = [a for a in need if a not in sweep]
         if missing:
             raise ResultsError(f"{where}: sweep.{size} lacks axes {missing}")
@@ -230,8 +246,10 @@ def entry_rows(doc, experiment):
             continue
         run_name = canonical_run_name(entry.get("run_name", entry["name"]))
         family, params = parse_run_name(run_name)
-        if family == "step":  # a name without the segment is a window from t = 0.35 s
-            params.setdefault("flow_time", DEFAULT_FLOW_TIME)
+        # a name without the segment has the axis' default (a step window
+        # without flow_time starts from t = 0.35 s; a search without impl is sphnl's)
+        for axis in DEFAULTED_ON_LOAD.get(family, ()):
+            params.setdefault(axis, AXIS_DEFAULTS[family][axis])
         row = {"experiment": experiment, "family": family, "run_name": run_name}
         row.update(params)
         for key, value in entry.items():

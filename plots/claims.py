@@ -463,6 +463,34 @@ def vlx_gain_grows_with_loops(med, c):
             {f"gain_k{int(x)}": float(v) for x, v in g.items()})
 
 
+# ------------------------------------------------------------------- peers
+PEER_KEYS = ["cloud", "memory_order", "call", "threads"]
+
+
+@claim("sphnl_over_nanoflann")
+def sphnl_over_nanoflann(med, c):
+    """Entries per second of sphnl over nanoflann, paired configuration by
+    configuration (cloud, memory order, call, threads) at one N; the value is
+    the geometric mean of the ratios, the smallest and largest beside it."""
+    n, note = _at(med, c)
+    note = note.replace("(paper: ", "(claim read at ")  # a target of ours, not the paper's
+    m = pick(med, particles=n)
+    if "impl" not in m:
+        raise NotMeasured("no impl axis in the results")
+    mine = m[m["impl"] == "sphnl"].set_index(PEER_KEYS)["entries_per_s"]
+    peer = m[m["impl"] == "nanoflann"].set_index(PEER_KEYS)["entries_per_s"]
+    common = mine.index.intersection(peer.index)
+    if not len(common):
+        raise NotMeasured(f"no configuration measured with both sphnl and nanoflann at N = {_n_str(n)}")
+    ratio = (mine[common] / peer[common]).to_numpy(float)
+    related = {"smallest_ratio": float(ratio.min()), "largest_ratio": float(ratio.max())}
+    for call in sorted(set(common.get_level_values("call"))):
+        sel = np.asarray(common.get_level_values("call") == call)
+        related[f"{call}_call"] = float(np.exp(np.mean(np.log(ratio[sel]))))
+    return float(np.exp(np.mean(np.log(ratio)))), \
+        f"{note}; geometric mean over {len(common)} paired configurations", related
+
+
 # ------------------------------------------------------------------ verdicts
 def validate_claim(c, where):
     """Every band two-sided, finite, reproduced inside partly, with a reason."""

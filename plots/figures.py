@@ -370,8 +370,49 @@ def beyond_threads(data, out):
                                        else f"µs per particle-step: {text}.")
 
 
+IMPLS = ("sphnl", "nanoflann")
+CALLS = {"warm": "warm call (buffers reused)", "first": "first call (fresh objects and memory)"}
+
+
+def geometric_mean(values):
+    return float(np.exp(np.mean(np.log(np.asarray(values, float)))))
+
+
+def _peer_curves(med, call):
+    """Entries per second against N, one curve per implementation and thread
+    count: the geometric mean over the clouds and memory orders measured."""
+    m = med[med["call"] == call]
+    out = []
+    for impl in IMPLS:
+        for th in sorted(m["threads"].unique()):
+            part = m[(m["impl"] == impl) & (m["threads"] == th)]
+            if len(part):
+                g = part.groupby("particles").agg(N=("N", "first"), eps=("entries_per_s", geometric_mean)).sort_values("N")
+                out.append((f"{impl}, {th} thread{'s' if th > 1 else ''}", g["N"].to_numpy(float),
+                            g["eps"].to_numpy(float)))
+    if not out:
+        raise NoData(f"no {call} calls of {', '.join(IMPLS)}")
+    return out
+
+
+def peers(data, out):
+    """Beyond the paper: sphnl's search and nanoflann's radius search building
+    the same full lists (entries per second, warm and first call)."""
+    med = _med(data, family="search")
+    if "impl" not in med.point or not set(IMPLS) <= set(med.point["impl"]):
+        raise NoData("needs both implementations (impl: sphnl and nanoflann)")
+    calls = [c for c in CALLS if c in set(med.point["call"])]
+    panels = [(f"entries per second, {CALLS[c]}", med.curves(lambda m, c=c: _peer_curves(m, c)), False)
+              for c in calls]
+    _draw(out, "peers", "Beyond the paper: full neighbour lists, sphnl and nanoflann "
+          "(geometric mean over lattice/random clouds, generated/shuffled order)", N_LABEL, panels)
+    n, text = _at_end(panels[0][1], " /s", best="max")
+    return (f"At N = {_fmt_n(n)}, list entries per second of a {calls[0]} call from fastest "
+            f"[95 % interval]: {text}.")
+
+
 FIGURES = {f.__name__: f for f in (fig06, fig07, fig08, fig09, fig10, fig11, fig12, fig13,
-                                   fig14, fig15, fig16, fig17, cellindex, beyond_threads)}
+                                   fig14, fig15, fig16, fig17, cellindex, beyond_threads, peers)}
 
 PHASES = (("Neighbour List", "s_neighbour_list", "list"), ("Force Computation", "s_force", "force"),
           ("System Update", "s_update", "update"))

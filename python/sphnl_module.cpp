@@ -99,7 +99,8 @@ gridder: 'A', 'B', 'C' or 'D' (paper section 2.3).
 cell_order: 'sort_x', 'sort_xy', 'sort_xyz' or 'hilbert' (section 2.4).
 reorder: search on coordinates copied into cell order; results do not change.
 half: False: row i holds every neighbour j of i; True: only those with j > i.
-threads: only 1 for now (the search is single-threaded).
+threads: OpenMP threads the search and the copy into the output split the
+    rows over (>= 1); the result does not depend on it.
 
 Returns (offsets, indices): offsets int64 of length n + 1, indices uint32; the
 neighbours of point i are indices[offsets[i]:offsets[i + 1]], sorted ascending,

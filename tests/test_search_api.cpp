@@ -295,7 +295,7 @@ TEST(SearchApi, BadInputsThrowClearErrors) {
   EXPECT_THROW(Search{inf}, std::invalid_argument);
   EXPECT_NE(message_of([&] { Search s(-1.0); }).find("radius"), std::string::npos);
   Search::Options threaded;
-  threaded.threads = 2;
+  threaded.threads = 0;  // at least one thread
   EXPECT_NE(message_of([&] { Search s(1.0, threaded); }).find("threads"), std::string::npos);
 
   Search s(1.0);

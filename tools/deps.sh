@@ -5,7 +5,7 @@
 set -euo pipefail
 PACKAGES=(g++ make cmake git libbenchmark-dev libbenchmark-tools libgtest-dev libeigen3-dev nlohmann-json3-dev
           python3 python3-numpy python3-pandas python3-matplotlib python3-scipy valgrind
-          pybind11-dev python3-pybind11 python3-dev libopenmpi-dev openmpi-bin)
+          pybind11-dev python3-pybind11 python3-dev libopenmpi-dev openmpi-bin libnanoflann-dev)
 missing=()
 for p in "${PACKAGES[@]}"; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then

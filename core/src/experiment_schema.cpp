@@ -28,6 +28,16 @@ std::string positive_number(const json& v) {
   return v.is_number() && std::isfinite(v.get<double>()) && v.get<double>() > 0 ? "" : "a number > 0";
 }
 
+/// A check accepting exactly `allowed` (string values).
+std::function<std::string(const json&)> one_of(std::vector<std::string> allowed) {
+  return [allowed](const json& v) {
+    if (v.is_string() && std::find(allowed.begin(), allowed.end(), v.get<std::string>()) != allowed.end()) return std::string();
+    std::string list;
+    for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+    return "one of " + list;
+  };
+}
+
 // Register a new sweep axis here (and, for its place in benchmark names, in the
 // family's axis list in benchmarks/ and FAMILY_KEYS of harness/results.py).
 const std::vector<Axis>& axes() {
@@ -52,6 +62,12 @@ const std::vector<Axis>& axes() {
       {"gridder_a_variant", {"step"}, {}, {}},
       {"initial_order", {"step"}, {}, {}},
       {"extra_loops", {"step"}, {}, {}},
+      // the search family's peers and clouds (benchmarks/search_benchmark.cpp;
+      // a sweep without them means sphnl, lattice, generated, warm)
+      {"impl", {"search"}, {}, one_of({"sphnl", "nanoflann"})},
+      {"cloud", {"search"}, {}, one_of({"lattice", "random"})},
+      {"memory_order", {"search"}, {}, one_of({"generated", "shuffled"})},
+      {"call", {"search"}, {}, one_of({"warm", "first"})},
   };
   return table;
 }

@@ -1,5 +1,7 @@
 #include "sphnl/search.hpp"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -85,10 +87,6 @@ struct Search::Impl {
   std::vector<double> x, y, z;
   std::vector<std::uint32_t> cell_order;
   bool built = false;
-  // Entries of the half lists, counted on first use after a build (rows()
-  // and rows_into() both need it).
-  mutable std::uint64_t half_entries = 0;
-  mutable bool half_counted = false;
 
   Impl(double r, const Options& o)
       : radius(r), options(o), engine([&] {
@@ -96,13 +94,13 @@ struct Search::Impl {
           s.gridder = o.gridder;
           s.order = o.cell_order;
           s.reorder = o.reorder;
+          s.threads = o.threads;
           return s;
         }()) {}
 
   /// Runs the engine on x, y, z (already filled and length-checked).
   void run() {
     built = false;  // a failed build leaves no stale results
-    half_counted = false;
     check_finite(x, y, z, "build");
     try {
       engine.run(x, y, z, radius, lists);
@@ -134,18 +132,27 @@ struct Search::Impl {
     built = true;
   }
 
-  /// Entries of row r (of point i) that belong in a list of this kind.
+  /// fn(point, row, kind) for every row of the lists, in cell order.
   template <class Fn>
   void each_row(Rows kind, Fn fn) const {
     for (std::size_t r = 0; r < lists.num_rows(); ++r) fn(lists.point(r), lists.row(r), kind);
+  }
+  /// each_row() split over the search's threads: fn must only write what
+  /// belongs to its own point (the rows of distinct points are independent).
+  template <class Fn>
+  void each_row_in_parallel(Rows kind, Fn fn) const {
+    if (options.threads <= 1) return each_row(kind, fn);
+    const std::ptrdiff_t rows = static_cast<std::ptrdiff_t>(lists.num_rows());
+#pragma omp parallel for num_threads(options.threads) schedule(static)
+    for (std::ptrdiff_t r = 0; r < rows; ++r) fn(lists.point(r), lists.row(r), kind);
   }
 };
 
 Search::Search(double radius, const Options& options) {
   if (!(radius > 0) || !std::isfinite(radius))
     fail("radius must be a positive finite number, got " + std::to_string(radius));
-  if (options.threads != 1)
-    fail("threads = " + std::to_string(options.threads) + ": the search is single-threaded for now, pass threads = 1");
+  if (options.threads < 1)
+    fail("threads = " + std::to_string(options.threads) + ": pass 1 or more (the rows are split over that many threads)");
   impl_ = std::make_unique<Impl>(radius, options);
 }
 
@@ -200,15 +207,10 @@ const Search::Options& Search::options() const { return impl_->options; }
 std::uint64_t Search::num_entries(Rows kind) const {
   if (!impl_->built) return 0;
   if (kind == Rows::full) return impl_->lists.num_entries();
-  if (!impl_->half_counted) {
-    std::uint64_t n = 0;
-    impl_->each_row(kind, [&](std::uint32_t i, std::span<const std::uint32_t> row, Rows) {
-      for (std::uint32_t j : row) n += j > i;
-    });
-    impl_->half_entries = n;
-    impl_->half_counted = true;
-  }
-  return impl_->half_entries;
+  // Each pair is in the rows of both its points (the lists are symmetric:
+  // r^2 of (i, j) and of (j, i) are the same operations on negated
+  // differences), and once in the half rows.
+  return impl_->lists.num_entries() / 2;
 }
 
 void Search::rows_into(Rows kind, std::span<std::int64_t> offsets, std::span<std::uint32_t> indices) const {
@@ -219,11 +221,17 @@ void Search::rows_into(Rows kind, std::span<std::int64_t> offsets, std::span<std
   if (indices.size() != entries)
     fail("rows_into: indices has " + std::to_string(indices.size()) + " elements, needs num_entries() = " +
          std::to_string(entries));
-  // Count per input point, prefix-sum, then copy every row to its point's
-  // place and sort it: rows come from the engine in cell order.
-  std::fill(offsets.begin(), offsets.end(), 0);
+  // Count per input point and prefix-sum; then a transpose instead of a
+  // sort: the rows of i = 0, 1, 2, ... are read in input order and i is
+  // appended to the output row of each of its neighbours j. The lists are
+  // symmetric (i is in row j iff j is in row i), so output row j receives
+  // exactly its neighbours, in increasing order: no row needs sorting, and
+  // every entry is moved once (a sort of each row costs ~ log2(row) compares
+  // per entry, most of them mispredicted branches). A half row j keeps the
+  // i > j.
+  offsets[0] = 0;
   const bool half = kind == Rows::half;
-  impl_->each_row(kind, [&](std::uint32_t i, std::span<const std::uint32_t> row, Rows) {
+  impl_->each_row_in_parallel(kind, [&](std::uint32_t i, std::span<const std::uint32_t> row, Rows) {
     std::int64_t c = 0;
     if (half)
       for (std::uint32_t j : row) c += j > i;
@@ -232,17 +240,35 @@ void Search::rows_into(Rows kind, std::span<std::int64_t> offsets, std::span<std
     offsets[std::size_t{i} + 1] = c;
   });
   for (std::size_t i = 0; i < n; ++i) offsets[i + 1] += offsets[i];
-  impl_->each_row(kind, [&](std::uint32_t i, std::span<const std::uint32_t> row, Rows) {
-    std::uint32_t* const begin = indices.data() + offsets[i];
-    std::uint32_t* w = begin;
-    if (half) {
-      for (std::uint32_t j : row)
-        if (j > i) *w++ = j;
-    } else {
-      w = std::copy(row.begin(), row.end(), w);
+  const NeighbourLists& lists = impl_->lists;
+  const std::vector<std::uint32_t>& point_of_row = impl_->cell_order;
+  std::vector<std::uint32_t> row_of(n);
+  for (std::size_t r = 0; r < n; ++r) row_of[point_of_row[r]] = static_cast<std::uint32_t>(r);
+  std::vector<std::int64_t> next(offsets.begin(), offsets.end() - 1);
+  std::uint32_t* const out = indices.data();
+  // Output rows [j_begin, j_end) only: with several threads each owns a range
+  // of output rows (of about equal entries) and reads every input row.
+  auto transpose = [&](std::uint32_t j_begin, std::uint32_t j_end) {
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::uint32_t self = static_cast<std::uint32_t>(i);
+      for (const std::uint32_t j : lists.row(row_of[i]))
+        if (j >= j_begin && j < j_end && (!half || self > j)) out[next[j]++] = self;
     }
-    std::sort(begin, w);
-  });
+  };
+  const int threads = impl_->options.threads;
+  if (threads <= 1 || n == 0) {
+    transpose(0, static_cast<std::uint32_t>(n));
+    return;
+  }
+#pragma omp parallel num_threads(threads)
+  {
+    const std::int64_t t = omp_get_thread_num(), team = omp_get_num_threads();
+    auto first_row = [&](std::int64_t k) {  // first output row of thread k
+      const std::int64_t want = offsets[n] * k / team;
+      return static_cast<std::uint32_t>(std::lower_bound(offsets.begin(), offsets.end() - 1, want) - offsets.begin());
+    };
+    transpose(first_row(t), t + 1 == team ? static_cast<std::uint32_t>(n) : first_row(t + 1));
+  }
 }
 
 CompressedRows Search::rows(Rows kind) const {

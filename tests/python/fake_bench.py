@@ -149,6 +149,11 @@ def main(argv=None):
             t, share = step_model(point)
             ctr = counters(point, t * noise, share, steps)
             real = ctr["s_per_step"] * steps
+        elif family == "search":  # full lists, 74 entries a point; the peer 8x slower
+            real = 2e-7 * point["particles"] * (8 if point.get("impl") == "nanoflann" else 1) \
+                / (0.9 * point["threads"] if point["threads"] > 1 else 1) * noise
+            ctr = {"n_particles": point["particles"], "entries": 74 * point["particles"], "entries_per_s": 74 * point["particles"] / real,
+                   "s_call": real, "bytes": 400 * point["particles"]}
         else:  # cellindex: passes over n particles, >= 2e6 keys in all
             per = {"sort_x": 1e-9, "sort_xy": 3e-9, "sort_xyz": 4e-9, "hilbert": 9e-9}[point["cell_order"]]
             passes = max(1, 2_000_000 // point["particles"])

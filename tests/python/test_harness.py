@@ -744,6 +744,29 @@ class TestClaims(unittest.TestCase):
                               {"s_per_step": 1.0}) for lst in ("cll", "vlx")])
         self.assertEqual(C.evaluate(c, no_axis)["verdict"], "not measured")
 
+    def test_peer_ratio_pairs_configurations_and_takes_their_geometric_mean(self):
+        """sphnl_over_nanoflann: sphnl's entries per second over nanoflann's,
+        configuration by configuration, at the largest N; 8x and 2x give 4x."""
+        import pandas as pd
+        rows = []
+        for rep in range(3):
+            for impl, base in (("sphnl", 8e8), ("nanoflann", 1e8)):
+                for call, factor in (("warm", 1.0), ("first", 4.0)):  # sphnl 8x warm, 2x first
+                    eps = base / (factor if impl == "sphnl" and call == "first" else 1.0)
+                    for n in (31000, 150000):
+                        rows.append({"experiment": "peers", "family": "search", "particles": n, "gridder": "B",
+                                     "cell_order": "sort_x", "reorder": 1, "threads": 1, "impl": impl,
+                                     "cloud": "lattice", "memory_order": "generated", "call": call,
+                                     "repetition_index": rep, "round": rep, "error_occurred": False,
+                                     "error_message": "", "run_name": f"search/{impl}/{call}/{n}",
+                                     "n_particles": n, "entries_per_s": eps * (1 + 0.01 * rep)})
+        r = C.evaluate(self.claim("sphnl_over_nanoflann"), pd.DataFrame(rows))
+        self.assertAlmostEqual(r["value"], 4.0, places=6)
+        self.assertAlmostEqual(r["related"]["smallest_ratio"]["value"], 2.0, places=6)
+        self.assertAlmostEqual(r["related"]["warm_call"]["value"], 8.0, places=6)
+        self.assertEqual(r["verdict"], "partly", r)
+        self.assertIn("150 000", r["note"])
+
     def test_regression_flips_a_claim_end_to_end(self):
         """fake_bench --fake-regress: slowing VL_X turns its gain into a loss."""
         with tempfile.TemporaryDirectory() as tmp:

@@ -55,6 +55,14 @@ class TinyPipeline(unittest.TestCase):
                 ran.append(exp_id)
             self.assertIn("fig06", ran)
             self.assertIn("fig14", ran)
+            # The peers: both implementations on every cloud, order and call,
+            # each having passed the pair-set check against sphnl's engine.
+            self.assertIn("peers", ran)
+            peers = json.loads((run_dir / "peers.json").read_text(encoding="utf-8"))["benchmarks"]
+            for axis, values in (("impl", {"sphnl", "nanoflann"}), ("cloud", {"lattice", "random"}),
+                                 ("memory_order", {"generated", "shuffled"}), ("call", {"warm", "first"})):
+                self.assertEqual({b["run_name"].split(f"/{axis}:")[1].split("/")[0] for b in peers}, values, axis)
+            self.assertEqual(len({b["entries"] for b in peers}), 2, "lattice and random: one entry count each")
             # fig16 sweeps three flow states at tiny too: one development run of
             # the case saved all three snapshots, each window starts from its own.
             cache = sorted(p.name for p in (Path(tmp) / "cache").glob("*.snap"))
@@ -71,7 +79,7 @@ class TinyPipeline(unittest.TestCase):
                                     env={**os.environ, "MPLBACKEND": "Agg"})
             self.assertEqual(report.returncode, 0, report.stdout[-2000:] + report.stderr[-2000:])
             newest_json = max((run_dir / f"{e}.json").stat().st_mtime for e in ran)
-            for fig in ["fig%02d" % k for k in range(6, 18)]:
+            for fig in ["fig%02d" % k for k in range(6, 18)] + ["peers"]:
                 for ext in ("png", "svg"):
                     path = run_dir / "figures" / f"{fig}.{ext}"
                     self.assertTrue(path.is_file() and path.stat().st_size > 1000, f"{path} missing or empty")

@@ -12,7 +12,8 @@
 //
 // A thin layer over NeighbourSearch (the engine of `sphnl neighbours` and of
 // the `search` benchmarks); this header includes none of the engine's headers.
-// Not thread-safe: one Search per thread. A moved-from Search may only be
+// Not thread-safe: one Search per calling thread (Options::threads is how
+// one search uses several). A moved-from Search may only be
 // assigned to or destroyed.
 #include <cstdint>
 #include <memory>
@@ -45,13 +46,13 @@ class Search {
     GridderKind gridder = GridderKind::B;            ///< particles in cells, paper §2.3
     CellOrderKind cell_order = CellOrderKind::sort_x;  ///< numbering of the cells, §2.4
     bool reorder = true;  ///< search on coordinates copied into cell order (§2.4); results do not change
-    /// Threads of the search. The engine is single-threaded for now: only 1
-    /// is accepted, anything else throws std::invalid_argument.
+    /// OpenMP threads the search and rows() split the rows over (>= 1); the
+    /// lists do not depend on it.
     int threads = 1;
   };
 
   /// A search for neighbours closer than `radius`. Throws std::invalid_argument
-  /// when radius is not a positive finite number or options.threads != 1.
+  /// when radius is not a positive finite number or options.threads < 1.
   Search(double radius, const Options& options);
   /// Search(radius, Options{}): gridder B, sort_x, reordering, one thread.
   explicit Search(double radius);

@@ -1,7 +1,9 @@
 #include "sphnl/neighbours/neighbour_search.hpp"
 
+#include <omp.h>
+
 #include <algorithm>
-#include <cfloat>
+#include <exception>
 #include <stdexcept>
 #include <string>
 
@@ -22,16 +24,16 @@ struct Range {
 
 // ------------------------------------------------------------- NeighbourLists
 
-std::uint32_t* NeighbourLists::reserve(std::uint64_t used, std::uint64_t more, std::size_t rows_done) {
+std::uint32_t* NeighbourLists::Segment::reserve(std::uint64_t used, std::uint64_t more, std::size_t rows_done) {
   const std::uint64_t need = used + more + kFilterSlack;
-  const std::uint64_t capacity = entries_.capacity();
-  if (need <= capacity) return entries_.data();
+  const std::uint64_t capacity = entries.capacity();
+  if (need <= capacity) return entries.data();
   // Grow to the larger of 1.5x and the size the rows done so far project for
-  // all rows, so a search of N points reallocates a few times at most.
+  // all the segment's rows, so a segment reallocates a few times at most.
   const double projected =
-      rows_done ? 1.15 * static_cast<double>(used) * static_cast<double>(point_.size()) / static_cast<double>(rows_done) : 0.0;
+      rows_done ? 1.15 * static_cast<double>(used) * static_cast<double>(rows) / static_cast<double>(rows_done) : 0.0;
   const std::uint64_t cap = std::max({need, capacity + capacity / 2, static_cast<std::uint64_t>(projected)});
-  return entries_.grow(cap, used);
+  return entries.grow(cap, used);
 }
 
 void NeighbourLists::counts(std::vector<std::uint32_t>& out) const {
@@ -52,9 +54,11 @@ NeighbourSearch::NeighbourSearch(const SearchOptions& options)
 NeighbourSearch::~NeighbourSearch() = default;
 
 std::size_t NeighbourSearch::bytes() const {
-  const std::size_t u32 = keys_.capacity() + permutation_.capacity() + cell_start_.capacity() + gather_index_.capacity();
-  const std::size_t f64 = xs_.capacity() + ys_.capacity() + zs_.capacity() + gx_.capacity() + gy_.capacity() + gz_.capacity();
-  return gridder_->bytes() + order_->bytes() + u32 * sizeof(std::uint32_t) + f64 * sizeof(double);
+  std::size_t b = (cell_start_.capacity() + key_bounds_.capacity()) * sizeof(std::uint32_t) +
+                  (xs_.capacity() + ys_.capacity() + zs_.capacity()) * sizeof(double);
+  for (const Gather& g : gather_)
+    b += g.index.capacity() * sizeof(std::uint32_t) + (g.x.capacity() + g.y.capacity() + g.z.capacity()) * sizeof(double);
+  return gridder_->bytes() + order_->bytes() + sort_.bytes() + b;
 }
 
 void NeighbourSearch::build(std::span<const double> x, std::span<const double> y, std::span<const double> z,
@@ -79,48 +83,53 @@ void NeighbourSearch::build(std::span<const double> x, std::span<const double> y
     }
     for (int d = 0; d < 3; ++d) max_abs = std::max({max_abs, std::fabs(box.lo[d]), std::fabs(box.hi[d])});
   }
-  // Cell side: R plus a margin covering the round-off of (x - lo) / side, so a
-  // pair the distance test accepts is never two cells apart. Cells are
-  // enlarged (still correct, more candidates) when a sparse cloud would need
-  // far more cells than points.
-  double side = radius * (1 + 1e-9) + 16 * DBL_EPSILON * max_abs;
-  const double max_cells = std::max(64.0, 2.0 * static_cast<double>(n));
-  while (CellGrid::cells_needed(box, side) > max_cells) side *= 1.25;
-  bool same_grid = side == grid_.cell_size;
-  for (int d = 0; d < 3; ++d) same_grid = same_grid && box.lo[d] == grid_.box.lo[d] && box.hi[d] == grid_.box.hi[d];
-  if (!same_grid) {
-    grid_ = CellGrid(box, side);
-    order_->setup(grid_);
-  }
+  // Cells of side R, widened by the round-off of the cell coordinate so a
+  // pair the distance test accepts is never two cells apart, and enlarged
+  // (still correct, more candidates) when a sparse cloud would need far more
+  // cells than points.
+  GridRequest request;
+  request.box = box;
+  request.min_side = radius;
+  request.roundoff_margin = true;
+  request.max_abs = max_abs;
+  request.max_cells = std::max(64.0, 2.0 * static_cast<double>(n));
+  fit_grid(request, grid_, *order_);
 
   // Cell index of every point (§2.4), then particles in cells (§2.3).
-  keys_.resize(n);
-  order_->compute_keys(grid_, x, y, z, nullptr, keys_);
-  const std::uint32_t num_keys = order_->num_keys();
-  gridder_->build(keys_, num_keys);
-
+  const int threads = std::max(1, options_.threads);
+  sort_.place(grid_, *order_, *gridder_, x, y, z, nullptr, threads);
+  sort_.cell_starts(order_->num_keys(), cell_start_);
   if (options_.reorder) {
     // Reordering: coordinates permuted into cell order; then only the first
     // particle of each cell needs to be known (§2.4).
-    gridder_->cell_order_permutation(permutation_);
-    gather_by<double>(x, permutation_, xs_);
-    gather_by<double>(y, permutation_, ys_);
-    gather_by<double>(z, permutation_, zs_);
-    cell_start_.resize(std::size_t{num_keys} + 1);
-    std::uint32_t next_key = 0;
-    for (std::size_t k = 0; k < n; ++k) {
-      const std::uint32_t key = keys_[permutation_[k]];
-      while (next_key <= key) cell_start_[next_key++] = static_cast<std::uint32_t>(k);
+    sort_.sort(*gridder_);
+    if (threads == 1) {
+      gather_by<double>(x, sort_.permutation(), xs_);
+      gather_by<double>(y, sort_.permutation(), ys_);
+      gather_by<double>(z, sort_.permutation(), zs_);
+    } else {
+      xs_.resize(n);
+      ys_.resize(n);
+      zs_.resize(n);
+      const std::uint32_t* perm = sort_.permutation().data();
+      const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel for num_threads(threads) schedule(static)
+      for (std::ptrdiff_t k = 0; k < count; ++k) {
+        xs_[k] = x[perm[k]];
+        ys_[k] = y[perm[k]];
+        zs_[k] = z[perm[k]];
+      }
     }
-    while (next_key <= num_keys) cell_start_[next_key++] = static_cast<std::uint32_t>(n);
   } else {
     const std::size_t room = 27 * std::size_t{gridder_->max_cell_count()} + kFilterSlack;
-    if (gather_index_.size() < room) {
-      gather_index_.resize(room);
-      gx_.resize(room);
-      gy_.resize(room);
-      gz_.resize(room);
-    }
+    gather_.resize(static_cast<std::size_t>(threads));
+    for (Gather& g : gather_)
+      if (g.index.size() < room) {
+        g.index.resize(room);
+        g.x.resize(room);
+        g.y.resize(room);
+        g.z.resize(room);
+      }
   }
 }
 
@@ -139,103 +148,177 @@ void NeighbourSearch::run(std::span<const double> x, std::span<const double> y, 
   times_.search = sw.lap();
 }
 
-void NeighbourSearch::search_sorted(double radius2, NeighbourLists& out) {
+template <class Sweep>
+void NeighbourSearch::split_rows(NeighbourLists& out, Sweep&& sweep) {
   const std::uint32_t num_keys = order_->num_keys();
-  const std::uint64_t* coords = order_->key_coords().data();
-  const std::uint32_t* start = cell_start_.data();
-  const double* x = xs_.data();
-  const double* y = ys_.data();
-  const double* z = zs_.data();
-  const std::uint32_t* id = permutation_.data();
-  std::uint32_t* point = out.point_.data();
-  std::uint64_t* offsets = out.offsets_.data();
-  std::uint64_t used = 0;
+  const std::size_t n = out.point_.size();
+  const int threads = std::max(1, options_.threads);
+  // Key ranges of about n / threads points each (cell_start_ is the running
+  // count of points over the keys).
+  key_bounds_.resize(static_cast<std::size_t>(threads) + 1);
+  key_bounds_[0] = 0;
+  for (int t = 1; t < threads; ++t) {
+    const std::uint64_t want = n * static_cast<std::uint64_t>(t) / static_cast<std::uint64_t>(threads);
+    const auto it = std::lower_bound(cell_start_.begin() + key_bounds_[t - 1], cell_start_.begin() + num_keys, want);
+    key_bounds_[t] = static_cast<std::uint32_t>(it - cell_start_.begin());
+  }
+  key_bounds_[threads] = num_keys;
+  if (out.segments_.size() < static_cast<std::size_t>(threads)) out.segments_.resize(static_cast<std::size_t>(threads));
+  out.num_segments_ = static_cast<std::size_t>(threads);
+  for (int t = 0; t < threads; ++t) {
+    NeighbourLists::Segment& s = out.segments_[t];
+    s.first_row = cell_start_[key_bounds_[t]];
+    s.rows = cell_start_[key_bounds_[t + 1]] - s.first_row;
+    s.base = 0;
+  }
+  if (threads == 1) {
+    sweep(0, 0u, num_keys, out.segments_[0]);
+    return;
+  }
+  std::exception_ptr failure;
+  std::vector<std::uint64_t> used(static_cast<std::size_t>(threads), 0);
+#pragma omp parallel num_threads(threads)
   {
-    // Room for the expected entries up front (growing means copying and
-    // touching fresh pages): if the 27 cells around a cell were as full as the
-    // cell, its points would see 27 n_k candidates, of which the fraction
-    // (4/3 pi R^3) / (3 side)^3 lies within R.
-    const double side = grid_.cell_size, r3 = radius2 * std::sqrt(radius2);
-    const double within = 4.18879020478639 * r3 / (27 * side * side * side);
-    double expected = 0;
-    for (std::uint32_t key = 0; key < num_keys; ++key) {
-      const double nk = start[key + 1] - start[key];
-      expected += 27 * within * nk * nk;
-    }
-    out.reserve(0, static_cast<std::uint64_t>(1.1 * expected), 0);
-  }
-  Range ranges[27];
-  for (std::uint32_t key = 0; key < num_keys; ++key) {
-    const std::uint32_t b = start[key], e = start[key + 1];
-    if (b == e) continue;
-    // The 27 cells as runs of consecutive sorted points; cells adjacent in key
-    // order merge (the 3 cells along x of sort_x are one run).
-    int nr = 0;
-    std::uint64_t candidates = 0;
-    for_each_stencil_cell(grid_, *order_, CellOrder::unpack_coords(coords[key]), kFullStencil, [&](std::uint32_t k, double) {
-      const std::uint32_t rb = start[k], re = start[k + 1];
-      if (rb == re) return;
-      candidates += re - rb;
-      if (nr > 0 && ranges[nr - 1].end == rb)
-        ranges[nr - 1].end = re;
-      else if (nr > 0 && ranges[nr - 1].begin == re)
-        ranges[nr - 1].begin = rb;
-      else
-        ranges[nr++] = {rb, re};
-    });
-    std::uint32_t* base = out.reserve(used, std::uint64_t{e - b} * candidates, b);
-    for (std::uint32_t i = b; i < e; ++i) {
-      std::uint32_t* w = base + used;
-      for (int r = 0; r < nr; ++r) {
-        const std::uint32_t rb = ranges[r].begin;
-        const std::uint32_t self = i - rb;  // >= count (no self) unless i lies in this run
-        w = append_within(x[i], y[i], z[i], x + rb, y + rb, z + rb, id + rb, ranges[r].end - rb, self, radius2, w);
+    const int t = omp_get_thread_num();
+    const int team = omp_get_num_threads();
+    // A smaller team than asked for: thread t also sweeps the ranges t + team, ...
+    for (int k = t; k < threads; k += team) {
+      try {
+        used[k] = sweep(k, key_bounds_[k], key_bounds_[k + 1], out.segments_[k]);
+      } catch (...) {
+#pragma omp critical(sphnl_neighbour_search_failure)
+        if (!failure) failure = std::current_exception();
       }
-      used = static_cast<std::uint64_t>(w - base);
-      point[i] = id[i];
-      offsets[i + 1] = used;
+    }
+#pragma omp barrier
+    // Offsets were written from 0 within each segment: add the entries of the
+    // segments before (each thread its own rows, which it wrote).
+    for (int k = t; k < threads; k += team) {
+      std::uint64_t base = 0;
+      for (int j = 0; j < k; ++j) base += used[j];
+      NeighbourLists::Segment& s = out.segments_[k];
+      s.base = base;
+      if (base)
+        for (std::size_t r = s.first_row; r < s.first_row + s.rows; ++r) out.offsets_[r + 1] += base;
     }
   }
+  if (failure) std::rethrow_exception(failure);
+}
+
+void NeighbourSearch::search_sorted(double radius2, NeighbourLists& out) {
+  const std::uint64_t* coords_in = order_->key_coords().data();
+  const std::uint32_t* start_in = cell_start_.data();
+  const double* x_in = xs_.data();
+  const double* y_in = ys_.data();
+  const double* z_in = zs_.data();
+  const std::uint32_t* id_in = sort_.permutation().data();
+  std::uint32_t* point_in = out.point_.data();
+  std::uint64_t* offsets_in = out.offsets_.data();
+  // Expected entries of a key range: if the 27 cells around a cell were as
+  // full as the cell, its points would see 27 n_k candidates, of which the
+  // fraction (4/3 pi R^3) / (3 side)^3 lies within R.
+  const double side = grid_.cell_size, r3 = radius2 * std::sqrt(radius2);
+  const double within = 4.18879020478639 * r3 / (27 * side * side * side);
+  split_rows(out, [&](int, std::uint32_t key_begin, std::uint32_t key_end, NeighbourLists::Segment& segment) {
+    // The hot loop reads its own copies, not the enclosing function's locals
+    // through the closure (an extra load each, and a barrier to hoisting).
+    const std::uint64_t* const coords = coords_in;
+    const std::uint32_t* const start = start_in;
+    const double* const x = x_in;
+    const double* const y = y_in;
+    const double* const z = z_in;
+    const std::uint32_t* const id = id_in;
+    std::uint32_t* const point = point_in;
+    std::uint64_t* const offsets = offsets_in;
+    std::uint64_t used = 0;
+    {
+      // Room for the expected entries up front: growing means copying and
+      // touching fresh pages; the thread that fills them touches them first.
+      double expected = 0;
+      for (std::uint32_t key = key_begin; key < key_end; ++key) {
+        const double nk = start[key + 1] - start[key];
+        expected += 27 * within * nk * nk;
+      }
+      segment.reserve(0, static_cast<std::uint64_t>(1.1 * expected), 0);
+    }
+    const std::uint32_t first = start[key_begin];
+    Range ranges[27];
+    for (std::uint32_t key = key_begin; key < key_end; ++key) {
+      const std::uint32_t b = start[key], e = start[key + 1];
+      if (b == e) continue;
+      // The 27 cells as runs of consecutive sorted points; cells adjacent in key
+      // order merge (the 3 cells along x of sort_x are one run).
+      int nr = 0;
+      std::uint64_t candidates = 0;
+      for_each_stencil_cell(grid_, *order_, CellOrder::unpack_coords(coords[key]), kFullStencil, [&](std::uint32_t k, double) {
+        const std::uint32_t rb = start[k], re = start[k + 1];
+        if (rb == re) return;
+        candidates += re - rb;
+        if (nr > 0 && ranges[nr - 1].end == rb)
+          ranges[nr - 1].end = re;
+        else if (nr > 0 && ranges[nr - 1].begin == re)
+          ranges[nr - 1].begin = rb;
+        else
+          ranges[nr++] = {rb, re};
+      });
+      std::uint32_t* base = segment.reserve(used, std::uint64_t{e - b} * candidates, b - first);
+      for (std::uint32_t i = b; i < e; ++i) {
+        std::uint32_t* w = base + used;
+        for (int r = 0; r < nr; ++r) {
+          const std::uint32_t rb = ranges[r].begin;
+          const std::uint32_t self = i - rb;  // >= count (no self) unless i lies in this run
+          w = append_within(x[i], y[i], z[i], x + rb, y + rb, z + rb, id + rb, ranges[r].end - rb, self, radius2, w);
+        }
+        used = static_cast<std::uint64_t>(w - base);
+        point[i] = id[i];
+        offsets[i + 1] = used;
+      }
+    }
+    return used;
+  });
 }
 
 void NeighbourSearch::search_gathered(std::span<const double> xin, std::span<const double> yin,
                                       std::span<const double> zin, double radius2, NeighbourLists& out) {
-  const std::uint32_t num_keys = order_->num_keys();
   const std::uint64_t* coords = order_->key_coords().data();
   const Gridder& gridder = *gridder_;
-  std::uint32_t* idx = gather_index_.data();
-  double* x = gx_.data();
-  double* y = gy_.data();
-  double* z = gz_.data();
   std::uint32_t* point = out.point_.data();
   std::uint64_t* offsets = out.offsets_.data();
-  std::uint64_t used = 0;
-  std::size_t row = 0;
-  for (std::uint32_t key = 0; key < num_keys; ++key) {
-    const std::uint64_t c = coords[key];
-    if (c == CellOrder::kNoCellCoords) continue;
-    const std::uint32_t n_home = gridder.gather_cell(key, idx);
-    if (n_home == 0) continue;
-    // The home cell first, then its 26 neighbours, gathered into contiguous
-    // buffers: particle data stay in input order, so this is where scattered
-    // memory is read (what reordering removes).
-    std::uint32_t total = n_home;
-    for_each_stencil_cell(grid_, *order_, CellOrder::unpack_coords(c), kFullStencil, [&](std::uint32_t k, double) {
-      if (k != key) total += gridder.gather_cell(k, idx + total);
-    });
-    for (std::uint32_t k = 0; k < total; ++k) {
-      x[k] = xin[idx[k]];
-      y[k] = yin[idx[k]];
-      z[k] = zin[idx[k]];
+  split_rows(out, [&](int thread, std::uint32_t key_begin, std::uint32_t key_end, NeighbourLists::Segment& segment) {
+    Gather& g = gather_[thread];
+    std::uint32_t* idx = g.index.data();
+    double* x = g.x.data();
+    double* y = g.y.data();
+    double* z = g.z.data();
+    std::uint64_t used = 0;
+    std::size_t row = segment.first_row;
+    for (std::uint32_t key = key_begin; key < key_end; ++key) {
+      const std::uint64_t c = coords[key];
+      if (c == CellOrder::kNoCellCoords) continue;
+      const std::uint32_t n_home = gridder.gather_cell(key, idx);
+      if (n_home == 0) continue;
+      // The home cell first, then its 26 neighbours, gathered into contiguous
+      // buffers: particle data stay in input order, so this is where scattered
+      // memory is read (what reordering removes).
+      std::uint32_t total = n_home;
+      for_each_stencil_cell(grid_, *order_, CellOrder::unpack_coords(c), kFullStencil, [&](std::uint32_t k, double) {
+        if (k != key) total += gridder.gather_cell(k, idx + total);
+      });
+      for (std::uint32_t k = 0; k < total; ++k) {
+        x[k] = xin[idx[k]];
+        y[k] = yin[idx[k]];
+        z[k] = zin[idx[k]];
+      }
+      std::uint32_t* base = segment.reserve(used, std::uint64_t{n_home} * total, row - segment.first_row);
+      for (std::uint32_t h = 0; h < n_home; ++h) {
+        std::uint32_t* w = append_within(x[h], y[h], z[h], x, y, z, idx, total, h, radius2, base + used);
+        used = static_cast<std::uint64_t>(w - base);
+        point[row] = idx[h];
+        offsets[++row] = used;
+      }
     }
-    std::uint32_t* base = out.reserve(used, std::uint64_t{n_home} * total, row);
-    for (std::uint32_t h = 0; h < n_home; ++h) {
-      std::uint32_t* w = append_within(x[h], y[h], z[h], x, y, z, idx, total, h, radius2, base + used);
-      used = static_cast<std::uint64_t>(w - base);
-      point[row] = idx[h];
-      offsets[++row] = used;
-    }
-  }
+    return used;
+  });
 }
 
 }  // namespace sphnl

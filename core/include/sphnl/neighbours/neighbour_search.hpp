@@ -11,7 +11,14 @@
 // sort_x); with reorder off, each home cell gathers its 27 cells through the
 // gridder into a small contiguous buffer. Either way the distance filter of
 // pair_filter.hpp tests the candidates and compacts the survivors straight
-// into the CSR output. The grid, the cell keys, the gridders, the reordering
+// into the CSR output.
+//
+// Threads: the cells are split into `threads` contiguous key ranges holding
+// about as many points each; each thread sweeps its range and writes its rows
+// into its own segment of the output, which it allocates (once, from the
+// expected count of its cells) and so first-touches itself. The rows are
+// those of one thread, in the same order: only where their entries live
+// differs. The grid, the cell keys, the gridders, the reordering
 // permutation, the stencil walk and the filter are those of the cell-linked
 // list and the Verlet lists; only the cell side (fitted to the cloud) and the
 // full 27-cell stencil are this search's own.
@@ -24,6 +31,7 @@
 #include "sphnl/grid.hpp"
 #include "sphnl/gridders/gridder.hpp"
 #include "sphnl/kinds.hpp"
+#include "sphnl/neighbours/cell_sort.hpp"
 #include "sphnl/neighbours/distance.hpp"
 #include "sphnl/neighbours/uninit_buffer.hpp"
 #include "sphnl/orderings/cell_order.hpp"
@@ -35,34 +43,54 @@ struct SearchOptions {
   CellOrderKind order = CellOrderKind::sort_x;
   bool reorder = true;
   int max_parts_in_cell = 0;  // gridder C; 0 = twice the fullest cell
+  int threads = 1;            // rows split over this many OpenMP threads
 };
 
 /// Full neighbour lists in compressed-row form. Rows come in the order the
 /// search swept the cells; point(r) is the input index whose neighbours row r
-/// holds, and the neighbours are input indices (in no particular order).
+/// holds, and the neighbours are input indices (in no particular order). The
+/// entries lie in one segment per thread of the search (offsets are global:
+/// row r holds offsets[r + 1] - offsets[r] entries, the rows of all segments
+/// together num_entries()).
 class NeighbourLists {
  public:
   std::size_t num_rows() const { return point_.size(); }
   std::uint64_t num_entries() const { return offsets_.empty() ? 0 : offsets_.back(); }
   std::uint32_t point(std::size_t r) const { return point_[r]; }
   std::span<const std::uint32_t> row(std::size_t r) const {
-    return {entries_.data() + offsets_[r], static_cast<std::size_t>(offsets_[r + 1] - offsets_[r])};
+    const Segment& s = segment_of(r);
+    return {s.entries.data() + (offsets_[r] - s.base), static_cast<std::size_t>(offsets_[r + 1] - offsets_[r])};
   }
   /// Neighbour count of every input point, in input order.
   void counts(std::vector<std::uint32_t>& out) const;
   std::size_t bytes() const {
-    return entries_.capacity() * sizeof(std::uint32_t) + offsets_.capacity() * sizeof(std::uint64_t) +
-           point_.capacity() * sizeof(std::uint32_t);
+    std::size_t b = offsets_.capacity() * sizeof(std::uint64_t) + point_.capacity() * sizeof(std::uint32_t);
+    for (const Segment& s : segments_) b += s.entries.capacity() * sizeof(std::uint32_t);
+    return b;
   }
 
  private:
   friend class NeighbourSearch;
-  /// Makes room for `more` entries past `used` (plus SIMD store slack), keeping
-  /// the first `used`, once `rows_done` rows are written; never shrinks.
-  std::uint32_t* reserve(std::uint64_t used, std::uint64_t more, std::size_t rows_done);
+  /// Rows [first_row, next segment's first_row) with their entries; offsets_
+  /// of those rows count from `base` (the entries of the segments before).
+  struct Segment {
+    std::size_t first_row = 0, rows = 0;
+    std::uint64_t base = 0;
+    UninitBuffer<std::uint32_t> entries;
+    /// Makes room for `more` entries past `used` (plus SIMD store slack),
+    /// keeping the first `used`, once `rows_done` of its rows are written;
+    /// never shrinks.
+    std::uint32_t* reserve(std::uint64_t used, std::uint64_t more, std::size_t rows_done);
+  };
+  const Segment& segment_of(std::size_t r) const {
+    std::size_t k = num_segments_ - 1;
+    while (segments_[k].first_row > r) --k;
+    return segments_[k];
+  }
   std::vector<std::uint32_t> point_;
   std::vector<std::uint64_t> offsets_;
-  UninitBuffer<std::uint32_t> entries_;
+  std::vector<Segment> segments_;  // kept between runs with their memory
+  std::size_t num_segments_ = 1;
 };
 
 /// Seconds of the last run, split as `sphnl neighbours` reports them.
@@ -91,7 +119,17 @@ class NeighbourSearch {
   std::size_t bytes() const;
 
  private:
+  /// The 27 cells of one home cell, gathered (reorder off): one per thread.
+  struct Gather {
+    std::vector<std::uint32_t> index;
+    std::vector<double> x, y, z;
+  };
   void build(std::span<const double> x, std::span<const double> y, std::span<const double> z, double radius);
+  /// Splits the keys into one range per thread and runs
+  /// sweep(thread, key_begin, key_end, segment) on each, in parallel when
+  /// there are several; then makes the offsets global.
+  template <class Sweep>
+  void split_rows(NeighbourLists& out, Sweep&& sweep);
   void search_sorted(double radius2, NeighbourLists& out);
   void search_gathered(std::span<const double> x, std::span<const double> y, std::span<const double> z,
                        double radius2, NeighbourLists& out);
@@ -100,13 +138,14 @@ class NeighbourSearch {
   CellGrid grid_;
   std::unique_ptr<CellOrder> order_;
   std::unique_ptr<Gridder> gridder_;
-  std::vector<std::uint32_t> keys_;
-  // reorder on: coordinates, input index and cell start in cell order
-  std::vector<std::uint32_t> permutation_, cell_start_;
+  CellSort sort_;  // keys, gridder, and with reorder on the permutation into cell order
+  // first point (in cell order) of every key; with reorder on, the
+  // coordinates in cell order
+  std::vector<std::uint32_t> cell_start_;
   std::vector<double> xs_, ys_, zs_;
-  // reorder off: the 27 cells of one home cell, gathered
-  std::vector<std::uint32_t> gather_index_;
-  std::vector<double> gx_, gy_, gz_;
+  // reorder off: per thread, the 27 cells of one home cell, gathered
+  std::vector<Gather> gather_;
+  std::vector<std::uint32_t> key_bounds_;  // first key of every thread's range, and num_keys
   SearchTimes times_;
 };
 

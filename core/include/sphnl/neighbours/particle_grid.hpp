@@ -10,6 +10,7 @@
 #include "sphnl/grid.hpp"
 #include "sphnl/gridders/gridder.hpp"
 #include "sphnl/kinds.hpp"
+#include "sphnl/neighbours/cell_sort.hpp"
 #include "sphnl/orderings/cell_order.hpp"
 #include "sphnl/particles.hpp"
 
@@ -37,7 +38,7 @@ class ParticleGrid {
   const CellGrid& grid() const { return grid_; }
   const CellOrder& order() const { return *order_; }
   const Gridder& gridder() const { return *gridder_; }
-  const std::vector<std::uint32_t>& cell_keys() const { return keys_; }
+  std::span<const std::uint32_t> cell_keys() const { return sort_.keys(); }
   /// Bytes of the gridding structures: gridder, ordering tables, the key of
   /// every particle, and the reordering buffers once reordering has been used.
   std::size_t bytes() const;
@@ -48,9 +49,9 @@ class ParticleGrid {
   CellGrid grid_;
   std::unique_ptr<CellOrder> order_;
   std::unique_ptr<Gridder> gridder_;
-  std::vector<std::uint32_t> keys_;
-  // reordering buffers (allocated on first use, reused afterwards)
-  std::vector<std::uint32_t> permutation_, keys_scratch_, u32_scratch_;
+  CellSort sort_;
+  // reordering buffers of the particle arrays (allocated on first use, reused afterwards)
+  std::vector<std::uint32_t> u32_scratch_;
   std::vector<double> f64_scratch_;
 };
 
