@@ -16,7 +16,7 @@ using nlohmann::json;
 namespace {
 
 const std::vector<std::string> kAxes = {"n", "gridder", "order", "reorder", "list", "ns", "kgc", "threads", "lattice",
-                                        "h_coefficient", "flow_time"};
+                                        "h_coefficient", "flow_time", "cache_model"};
 
 RunConfig config_for(const Point& p) {
   json j = json::object();
@@ -32,7 +32,9 @@ RunConfig config_for(const Point& p) {
   take("kgc", "kgc");
   take("threads", "threads");
   take("lattice", "lattice");
-  take("h_coefficient", "h_coefficient");  // flow_time is not a run setting: it picks the snapshot
+  take("h_coefficient", "h_coefficient");
+  // flow_time is not a run setting (it picks the snapshot), nor is cache_model
+  // (the caches valgrind simulates around the same run: the counters kind)
   j["progress"] = false;
   return config_from_json(j);
 }
@@ -91,14 +93,14 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
 
 }  // namespace
 
-void register_step_benchmarks(const json& sweep, int window, const Options& opt) {
+void register_step_benchmarks(const json& sweep, int window, const Options& opt, const std::string& family) {
   std::vector<double> flow_times;  // every snapshot one development run of a case can save
   for (const Point& p : cross_product(sweep, kAxes)) flow_times.push_back(flow_time_of(p));
   std::sort(flow_times.begin(), flow_times.end());
   flow_times.erase(std::unique(flow_times.begin(), flow_times.end()), flow_times.end());
   for (const Point& p : cross_product(sweep, kAxes)) {
     const RunConfig cfg = config_for(p);  // validates every value before anything runs
-    const std::string name = benchmark_name("step", p, kAxes);
+    const std::string name = benchmark_name(family, p, kAxes);
     const double flow_time = flow_time_of(p);
     benchmark::RegisterBenchmark(name.c_str(),
                                  [cfg, flow_time, flow_times, window, cache = opt.cache_dir, name](benchmark::State& st) {

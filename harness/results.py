@@ -18,6 +18,9 @@ SIZES = ("tiny", "default", "full")
 FAMILY_KEYS = {
     "step": ["n", "gridder", "order", "reorder", "list", "ns", "kgc", "threads",
              "lattice", "h_coefficient", "flow_time"],
+    # the step window under callgrind (experiments/counters.py): the caches simulated
+    "counters": ["n", "gridder", "order", "reorder", "list", "ns", "kgc", "threads",
+                 "lattice", "h_coefficient", "flow_time", "cache_model"],
     "cellindex": ["order", "n"],
     "search": ["n", "gridder", "order", "reorder", "threads"],
 }
@@ -108,6 +111,8 @@ def validate_experiment(exp, path):
     for key in ("id", "benchmark", "sweep", "window_steps", "protocol", "claims"):
         if exp.get("uses") and key in ("window_steps", "protocol"):
             continue
+        if key == "protocol" and exp.get("benchmark") == "counters":
+            continue  # deterministic counts: one round, no protocol
         if key not in exp:
             raise ResultsError(f"{where}: missing key '{key}'")
     if exp["id"] != pathlib.Path(path).stem:
@@ -121,7 +126,8 @@ def validate_experiment(exp, path):
         sweep = exp["sweep"].get(size)
         if sweep is None:
             raise ResultsError(f"{where}: sweep has no size '{size}'")
-        need = STEP_AXES if exp["benchmark"] == "step" else FAMILY_KEYS[exp["benchmark"]]
+        need = STEP_AXES if exp["benchmark"] == "step" else STEP_AXES + ["cache_model"] \
+            if exp["benchmark"] == "counters" else FAMILY_KEYS[exp["benchmark"]]
         missing = [a for a in need if a not in sweep]
         if missing:
             raise ResultsError(f"{where}: sweep.{size} lacks axes {missing}")
@@ -132,7 +138,8 @@ def validate_experiment(exp, path):
             raise ResultsError(f"{where}: sweep.{size}.flow_time must list positive times in "
                                f"seconds, not {times}")
         try:
-            P.protocol_of(exp, size)
+            if exp["benchmark"] != "counters":
+                P.protocol_of(exp, size)
         except P.ProtocolError as e:
             raise ResultsError(str(e).replace(f"experiments/{exp['id']}.json", where)) from None
         ok, message = P.window_ok(exp, size)
@@ -202,7 +209,7 @@ def entry_rows(doc, experiment):
             continue
         run_name = entry.get("run_name", entry["name"])
         family, params = parse_run_name(run_name)
-        if family == "step":  # a name without the segment is a window from t = 0.35 s
+        if family in ("step", "counters"):  # a name without the segment is a window from t = 0.35 s
             params.setdefault("flow_time", DEFAULT_FLOW_TIME)
         row = {"experiment": experiment, "family": family, "run_name": run_name}
         row.update(params)
