@@ -412,7 +412,7 @@ def _counter_bars(data, out, fig_id, title, configs):
              "callgrind counts of one window, exact", ha="right", va="top", fontsize=7, color="0.4")
     _save(fig, out, fig_id)
     n, model = ns_[-1], models[-1]
-    parts = [f"{label} {_count(med, 'll_misses', None, n=n, cache_model=model, **eq):.3g}"
+    parts = [f"{_plain(label).replace('$n_s$', 'n_s')} {_count(med, 'll_misses', None, n=n, cache_model=model, **eq):.3g}"
              for label, eq in configs.items()]
     return (f"At N = {_fmt_n(n)} with the {CACHE_MODELS[model]}, LL misses per particle-step: "
             + ", ".join(parts) + ".")

@@ -242,6 +242,42 @@ class ExplanationSpecs(unittest.TestCase):
             X.validate(entry(measure={"op": "quotient", "of": [{}, {}]}), "f.json")
 
 
+class CountersReport(unittest.TestCase):
+    def test_figure_section_and_claims_json_from_a_counters_run(self):
+        """A run folder holding only counters_lists (synthetic counts): its
+        figure is drawn, the section evaluates its entries and lists the
+        others as not measured, and claims.json names the explanations."""
+        from plots import report
+        exp = R.load_experiments(REPO / "experiments")["counters_lists"]
+        entries = []
+        for k, p in enumerate(R.sweep_points(exp, "default")):
+            name = R.format_run_name("counters", p)
+            e = {"name": name, "run_name": name, "run_type": "iteration", "repetitions": 1, "repetition_index": 0,
+                 "iterations": 1, "real_time": 60.0, "time_unit": "s", "sphnl_round": 0, "n": p["n"],
+                 "window_steps": 21}
+            scale = (3.0 if p["list"] != "cll" else 1.0) * (2.0 if p["cache_model"] == "nehalem_2010" else 1.0)
+            for metric in ("ir", "d1_misses", "ll_misses"):
+                for ph, share in (("neighbour_list", 0.2), ("force", 0.7), ("update", 0.1)):
+                    e[f"{metric}_{ph}_per_particle_step"] = share * scale * p["n"] / 1000
+                e[f"{metric}_per_particle_step"] = scale * p["n"] / 1000
+            entries.append(e)
+        with tempfile.TemporaryDirectory() as tmp:
+            run_dir = pathlib.Path(tmp)
+            (run_dir / "counters_lists.json").write_text(json.dumps({"context": {}, "benchmarks": entries}))
+            text, records, *_ = report.build(run_dir, REPO / "experiments", resamples=50)
+            self.assertTrue((run_dir / "figures" / "counters_lists.png").stat().st_size > 1000)
+        self.assertIn("## Why the results differ", text)
+        why = text.split("## Why the results differ", 1)[1]
+        row = next(line for line in why.splitlines() if "`vlx_vlc_same_work`" in line)
+        self.assertIn("| 1x [1, 1] |", row)     # VL_X and VL_C equal in these counts: supported
+        self.assertIn("| supported |", row)
+        self.assertIn("| not measured |", next(line for line in why.splitlines() if "`A_ties_D_memory`" in line))
+        self.assertIn("| pending |", next(line for line in why.splitlines() if "`cll_boundary_pairs`" in line))
+        rec = {r["id"]: r for r in records}
+        self.assertIn("vl_outgrows_2010_ll", rec["vl_ns1_slower_13pct"]["explanation"])
+        self.assertIsNone(rec["table1_cll_list"]["explanation"])
+
+
 class ShippedExplanations(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
