@@ -43,6 +43,12 @@ KEPT = ("n", "n_fluid", "window_steps", "rebuilds", "mean_steps_per_list", "max_
 # result field prefix -> callgrind events summed (--cache-sim=yes event names)
 EVENTS = {"ir": ("Ir",), "d1_misses": ("D1mr", "D1mw"), "ll_misses": ("DLmr", "DLmw")}
 TOTAL_ONLY = {"i1_misses": ("I1mr",), "ll_instr_misses": ("ILmr",)}
+# glibc raises its mmap threshold when a large block is freed (the warm-up's
+# Simulation), so where the measured window's arrays land, hence their cache
+# sets, would depend on the history of the process; fixed at glibc's initial
+# 128 KiB the layout repeats from run to run (measured: D1 and LL counts
+# identical in two processes, where they differed by up to 20x in LL before).
+MALLOC_TUNABLE = "glibc.malloc.mmap_threshold=131072"
 # valgrind's callgrind with cache simulation runs the step about this many
 # times slower than native (measured here: docs/MEASUREMENT.md), for the plan.
 SLOWDOWN = 120.0
@@ -133,8 +139,9 @@ def count_one(name, model, *, valgrind, bench, size, work, env):
     cmd = V.callgrind_command(valgrind, f"{stem}.out",
                               bench_command(bench, "experiment.json", size, "cache", f"{stem}.json", name),
                               cache=model, dump_per_window=True)
+    tunables = ":".join(filter(None, [env.get("GLIBC_TUNABLES"), MALLOC_TUNABLE]))
     start = time.monotonic()
-    _run(cmd, log, env, work)
+    _run(cmd, log, {**env, "GLIBC_TUNABLES": tunables}, work)
     seconds = time.monotonic() - start
     dumps = V.dump_files(cg_out)
     if len(dumps) != WINDOWS_PER_RUN:
