@@ -129,7 +129,8 @@ def tiny_experiment(repo):
 class CountsRepeat(unittest.TestCase):
     def test_two_runs_give_the_same_counts(self):
         """One tiny window under callgrind, twice, in two run folders of
-        different name lengths: every count the same to the last."""
+        different name lengths: the instructions the same to the last, the
+        simulated misses to 1e-4 (see the comment below)."""
         bench, _ = counters_bench()
         with tempfile.TemporaryDirectory() as tmp:
             tmp = pathlib.Path(tmp)
@@ -151,7 +152,14 @@ class CountsRepeat(unittest.TestCase):
         counts = [k for k in a[0] if k.endswith(("_per_particle_step", "_total"))]
         self.assertGreater(len(counts), 10)
         for k in counts:
-            self.assertEqual(a[0][k], b[0][k], k)
+            if k.startswith("ir"):
+                self.assertEqual(a[0][k], b[0][k], k)
+            else:
+                # Known residual (docs/MEASUREMENT.md): at this tiny N the arrays
+                # live on glibc's brk heap, where strings of varying length made
+                # before the window (e.g. by Google Benchmark) can move them by a
+                # few bytes; one D1 miss in 10^5 has been seen between two runs.
+                self.assertAlmostEqual(a[0][k], b[0][k], delta=1e-4 * max(abs(a[0][k]), 1.0), msg=k)
         self.assertGreater(a[0]["ll_misses_total"], 0)
         self.assertGreater(a[0]["ir_phase_coverage"], 0.95)
         self.assertEqual(a[0]["ll_bytes"], 8 * 1024 * 1024)
