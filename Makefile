@@ -8,6 +8,7 @@
 #   make figures RESULTS=dir       redraw figures and report from stored JSON only
 #   make bench ARGS="..."          run the benchmark binary with ARGS passed through
 #   make compare [BASE=ref] [THRESHOLD=2]   compare performance against another git ref
+#   make counters-build            the build valgrind runs (build-counters/: x86-64-v3, -g) for the counters kind
 #   make test-sanitize             C++ tests under AddressSanitizer + UBSan (build-sanitize/)
 #   make test-portable             -march=x86-64-v2 build: no AVX-512, same results (build-portable/)
 #   make run ARGS="..."            run `sphnl run ARGS`
@@ -36,12 +37,15 @@ export MPLBACKEND := Agg
 
 SANITIZE_BUILD ?= build-sanitize
 PORTABLE_BUILD ?= build-portable
+# The counters kind runs sphnl_bench under valgrind 3.19, which cannot execute
+# AVX-512: an x86-64-v3 Release build with debug symbols (harness/valgrind.py).
+COUNTERS_BUILD ?= build-counters
 # The two physics validations (hydrostatic tank, Martin & Moyce front) run
 # minutes of simulated flow; under the sanitizers' ~3x slowdown they would
 # double CI time while exercising the same code the other tests cover.
 SANITIZE_SKIP ?= ^Validation\.
 
-.PHONY: all deps configure build test test-cpp test-python test-sanitize test-portable reproduce ablations figures bench compare run replicate clean
+.PHONY: all deps configure build test test-cpp test-python test-sanitize test-portable reproduce ablations figures bench compare run replicate clean counters-build
 
 all: build
 
@@ -78,8 +82,12 @@ test-portable: build
 	cmake --build $(PORTABLE_BUILD) --target sphnl -j $(JOBS)
 	$(PYTHON) tools/check_portable.py --native $(BUILD)/sphnl --portable $(PORTABLE_BUILD)/sphnl
 
-reproduce: build
-	$(PYTHON) -m experiments.run --size $(SIZE) --run-id $(RUN_ID) --bench $(BUILD)/benchmarks/sphnl_bench $(if $(MAX_N),--max-n $(MAX_N)) $(if $(FORCE_MERGE),--force-merge "$(FORCE_MERGE)")
+counters-build: deps
+	cmake -S . -B $(COUNTERS_BUILD) $$($(PYTHON) -m harness.valgrind --cmake-options)
+	cmake --build $(COUNTERS_BUILD) --target sphnl_bench -j $(JOBS)
+
+reproduce: build counters-build
+	$(PYTHON) -m experiments.run --size $(SIZE) --run-id $(RUN_ID) --bench $(BUILD)/benchmarks/sphnl_bench --counters-bench $(COUNTERS_BUILD)/benchmarks/sphnl_bench $(if $(MAX_N),--max-n $(MAX_N)) $(if $(FORCE_MERGE),--force-merge "$(FORCE_MERGE)")
 	$(PYTHON) -m plots.report results/$(RUN_ID)
 	@echo "sphnl: report: results/$(RUN_ID)/REPRODUCTION.md"
 
@@ -109,4 +117,4 @@ run: build
 	$(BUILD)/sphnl run $(ARGS)
 
 clean:
-	rm -rf $(BUILD) $(SANITIZE_BUILD) $(PORTABLE_BUILD) .compare
+	rm -rf $(BUILD) $(SANITIZE_BUILD) $(PORTABLE_BUILD) $(COUNTERS_BUILD) .compare

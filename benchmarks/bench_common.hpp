@@ -71,7 +71,11 @@ void timed_window(Simulation& sim, int steps, std::size_t& max_nl_bytes);
 /// under --benchmark_enable_random_interleaving.
 long next_run_sequence();
 
-void register_step_benchmarks(const nlohmann::json& sweep, int window, const Options& opt);
+/// The `step` family; with family "counters", the same windows named
+/// `counters/...` (cache_model segment included) for experiments/counters.py,
+/// which runs each under callgrind.
+void register_step_benchmarks(const nlohmann::json& sweep, int window, const Options& opt,
+                              const std::string& family = "step");
 void register_cellindex_benchmarks(const nlohmann::json& sweep, const Options& opt);
 void register_search_benchmarks(const nlohmann::json& sweep);
 

@@ -145,16 +145,16 @@ int main(int argc, char** argv) {
         return 2;
       }
     }
-    if (family == "step") {
+    if (family == "step" || family == "counters") {
       const int window = experiment.at("window_steps").at(opt.size).get<int>();
       if (window < 1) return fail("window_steps must be >= 1");
-      sb::register_step_benchmarks(sweep, window, opt);
+      sb::register_step_benchmarks(sweep, window, opt, family);
     } else if (family == "cellindex") {
       sb::register_cellindex_benchmarks(sweep, opt);
     } else if (family == "search") {
       sb::register_search_benchmarks(sweep);
     } else {
-      return fail("unknown benchmark family '" + family + "' in " + opt.experiment_path + " (known: step, cellindex, search)");
+      return fail("unknown benchmark family '" + family + "' in " + opt.experiment_path + " (known: step, counters, cellindex, search)");
     }
   } catch (const std::exception& e) {
     return fail("experiment '" + opt.experiment_path + "': " + e.what());

@@ -16,11 +16,12 @@ using nlohmann::json;
 namespace {
 
 // Name segments in this order (docs/CONTRACTS.md §2); an axis not listed comes after them.
-// The optional ablation axes (README.md, "Ablations") come last.
+// The optional ablation axes (README.md, "Ablations") come last; cache_model
+// only in the counters family (the caches valgrind simulates).
 const std::vector<std::string> kAxes = {"particles", "gridder", "cell_order", "reorder", "list", "list_steps",
                                         "kgc", "threads", "lattice", "h_coefficient", "flow_time",
                                         "pair_loop", "simd", "skip_boundary_pairs", "gridder_a_variant",
-                                        "initial_order", "extra_loops"};
+                                        "initial_order", "extra_loops", "cache_model"};
 
 void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const std::vector<double>& flow_times,
                int window, const std::string& cache_dir) {
@@ -69,7 +70,7 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
 
 }  // namespace
 
-void register_step_benchmarks(const json& sweep, int window, const Options& opt) {
+void register_step_benchmarks(const json& sweep, int window, const Options& opt, const std::string& family) {
   std::vector<double> flow_times;  // every snapshot one development run of a case can save
   for (const Point& p : cross_product(sweep, kAxes)) flow_times.push_back(flow_time_of(p));
   std::sort(flow_times.begin(), flow_times.end());

@@ -31,6 +31,7 @@ import sys
 import threading
 import time
 
+from experiments import counters as CNT
 from harness import machine as M
 from harness import protocol as P
 from harness import results as R
@@ -107,17 +108,20 @@ def round_seconds(exp, size):
 
 
 def estimate_seconds(exp, size):
-    """Model estimate of one experiment at its minimum number of rounds."""
+    """Model estimate of one experiment at its minimum number of rounds (a
+    counters experiment: its one round, one valgrind process at a time)."""
     if exp.get("uses"):
         return 0.0
+    if exp["benchmark"] == "counters":
+        return CNT.estimate_seconds(exp, size, step_seconds)
     return round_seconds(exp, size) * P.protocol_of(exp, size)["min_rounds"]
 
 
 def most_seconds(exp, size):
     """Model of the longest an experiment may take: rounds are added while one
     more fits in the budget, up to max_rounds; the minimum rounds always run."""
-    if exp.get("uses"):
-        return 0.0
+    if exp.get("uses") or exp["benchmark"] == "counters":
+        return estimate_seconds(exp, size)
     proto, per = P.protocol_of(exp, size), round_seconds(exp, size)
     fit = max(proto["min_rounds"], min(proto["max_rounds"], int(proto["budget_s"] // per)))
     return per * fit
@@ -135,7 +139,7 @@ def snapshot_seconds(experiments, size, cache_dir):
     threads = os.cpu_count() or 1
     need = collections.defaultdict(set)
     for exp in experiments:
-        if exp.get("uses") or exp["benchmark"] not in ("step", "cellindex"):
+        if exp.get("uses") or exp["benchmark"] not in ("step", "counters", "cellindex"):
             continue
         for p in R.sweep_points(exp, size):
             need[p["particles"]].add(p.get("flow_time", R.DEFAULT_FLOW_TIME))
@@ -445,6 +449,16 @@ def run_experiment(args, exp, out_path, label):
     return seconds
 
 
+def run_counters(args, exp, out_path, label):
+    """A `counters` experiment (experiments/counters.py): one round of callgrind
+    runs, no protocol; its errors end the run like a bench failure."""
+    try:
+        return CNT.run(args, exp, out_path, label, bench_env(args),
+                       progress=lambda msg: print(msg, flush=True))
+    except (CNT.CountersError, R.ResultsError) as e:
+        raise RunError(str(e), 2) from None
+
+
 def status(out_path, exp, size):
     """'complete', or why the experiment must (re)run."""
     if not out_path.exists():
@@ -494,6 +508,14 @@ def parse_args(argv):
     p.add_argument("--bench", type=pathlib.Path, default=REPO / "build/benchmarks/sphnl_bench",
                    help="benchmark binary (default: build/benchmarks/sphnl_bench; "
                         "a .py file is run with this Python)")
+    p.add_argument("--counters-bench", type=pathlib.Path,
+                   default=REPO / "build-counters/benchmarks/sphnl_bench",
+                   help="the bench valgrind runs for the counters experiments (default: "
+                        "build-counters/benchmarks/sphnl_bench, built by `make counters-build`)")
+    p.add_argument("--valgrind", default="valgrind", help="valgrind executable (counters experiments)")
+    p.add_argument("--counters-jobs", type=int, default=2,
+                   help="valgrind processes at a time for the counters experiments (default 2; the "
+                        "counts do not depend on the load)")
     p.add_argument("--only", help="comma-separated experiment ids (default: every experiment "
                                   "that draws a figure; a uses-only id runs its source)")
     p.add_argument("--force", action="store_true", help="rerun experiments already complete")
@@ -519,6 +541,8 @@ def parse_args(argv):
     args.run_id = args.run_id or args.size
     args.cache_dir = (args.cache_dir or args.results_dir / "cache").resolve()
     args.bench = args.bench.resolve() if args.bench.exists() else args.bench
+    args.counters_bench = args.counters_bench.resolve() if args.counters_bench.exists() else args.counters_bench
+    args.repo, args.step_seconds = REPO, step_seconds
     return args
 
 
@@ -543,6 +567,10 @@ def main(argv=None):
         for exp, out, why in plan:
             print(f"{exp['id']}: {'run (' + why + ')' if why else 'complete, skipped (--force reruns)'}")
         for exp, _ in todo:
+            if exp["benchmark"] == "counters":
+                print(f"  {exp['id']}: {estimate_seconds(exp, args.size):.0f} s under valgrind, one process at a "
+                      f"time (--counters-jobs {args.counters_jobs} divides it), one round: counts are deterministic")
+                continue
             rounds = P.protocol_of(exp, args.size)
             print(f"  {exp['id']}: {round_seconds(exp, args.size):.0f} s per round x "
                   f"{rounds['min_rounds']}-{rounds['max_rounds']} rounds (budget {hms(rounds['budget_s'])})")
@@ -586,7 +614,10 @@ def main(argv=None):
                     print(f"overall: {k - 1}/{len(todo)} experiments done in "
                           f"{hms(time.monotonic() - start)}, about {hms(left * measured / modelled)} "
                           "left at the rate measured so far", flush=True)
-                measured += run_experiment(args, exp, out, f"[{k}/{len(todo)}]")
+                if exp["benchmark"] == "counters":
+                    measured += run_counters(args, exp, out, f"[{k}/{len(todo)}]")
+                else:
+                    measured += run_experiment(args, exp, out, f"[{k}/{len(todo)}]")
                 modelled += estimate_seconds(exp, args.size)
         finally:
             args.part["loadavg_end"] = M.loadavg()

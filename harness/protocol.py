@@ -74,7 +74,7 @@ def window_ok(exp, size):
     of every n_s compared (whole list lifetimes, so no configuration pays for
     a build whose list it does not use) and cover at least LIST_LIFETIMES
     lifetimes of the largest n_s (paper section 2.5: a list lives n_s steps)."""
-    if exp.get("uses") or exp.get("benchmark") != "step":
+    if exp.get("uses") or exp.get("benchmark") not in ("step", "counters"):
         return True, ""
     ns = compared_ns(exp, size)
     window = exp["window_steps"].get(size)

@@ -26,6 +26,11 @@ FAMILY_KEYS = {
     "cellindex": ["cell_order", "particles"],
     "search": ["particles", "gridder", "cell_order", "reorder", "threads",
                "impl", "cloud", "memory_order", "call"],
+    # the step window under callgrind (the counters kind): the caches simulated
+    "counters": ["particles", "gridder", "cell_order", "reorder", "list", "list_steps", "kgc",
+                 "threads", "lattice", "h_coefficient", "flow_time",
+                 "pair_loop", "simd", "skip_boundary_pairs", "gridder_a_variant", "initial_order",
+                 "extra_loops", "cache_model"],
 }
 # The flow time (s) a step window starts from when the sweep has no flow_time axis.
 DEFAULT_FLOW_TIME = 0.35
@@ -40,16 +45,18 @@ OLD_COUNTERS = {"n": "n_particles"}            # old counter -> now (particles s
 # The value an optional axis has where a sweep (and so a benchmark name) lacks
 # it: the one table of defaults, read by validation and by the loader, so
 # results written before an axis existed still read (docs/CONTRACTS.md §2).
+_STEP_DEFAULTS = {"lattice": "bcc", "h_coefficient": 0.866025, "flow_time": DEFAULT_FLOW_TIME,
+                  "pair_loop": "gather", "simd": "on", "skip_boundary_pairs": 0,
+                  "gridder_a_variant": "occupied", "initial_order": "generated", "extra_loops": 0}
 AXIS_DEFAULTS = {
-    "step": {"lattice": "bcc", "h_coefficient": 0.866025, "flow_time": DEFAULT_FLOW_TIME,
-             "pair_loop": "gather", "simd": "on", "skip_boundary_pairs": 0, "gridder_a_variant": "occupied",
-             "initial_order": "generated", "extra_loops": 0},
+    "step": _STEP_DEFAULTS,
+    "counters": _STEP_DEFAULTS,  # cache_model has none: a counters sweep names it
     "cellindex": {},
     "search": {"impl": "sphnl", "cloud": "lattice", "memory_order": "generated", "call": "warm"},
 }
 # Axes filled in from AXIS_DEFAULTS when a name lacks them (lattice and h
 # coefficient stay absent in step rows, as the figures and claims expect).
-DEFAULTED_ON_LOAD = {"step": ("flow_time",), "search": ("impl", "cloud", "memory_order", "call")}
+DEFAULTED_ON_LOAD = {"step": ("flow_time",), "counters": ("flow_time",), "search": ("impl", "cloud", "memory_order", "call")}
 # Axes a sweep must list: every axis of the family without a default.
 REQUIRED_AXES = {family: [k for k in keys if k not in AXIS_DEFAULTS[family]]
                  for family, keys in FAMILY_KEYS.items()}
@@ -148,6 +155,8 @@ def validate_experiment(exp, path):
     for key in ("id", "benchmark", "sweep", "window_steps", "protocol", "claims"):
         if exp.get("uses") and key in ("window_steps", "protocol"):
             continue
+        if key == "protocol" and exp.get("benchmark") == "counters":
+            continue  # deterministic counts: one round, no protocol
         if key not in exp:
             raise ResultsError(f"{where}: missing key '{key}'")
     if exp["id"] != pathlib.Path(path).stem:
@@ -176,7 +185,8 @@ def validate_experiment(exp, path):
             raise ResultsError(f"{where}: sweep.{size}.flow_time must list positive times in "
                                f"seconds, not {times}")
         try:
-            P.protocol_of(exp, size)
+            if exp["benchmark"] != "counters":
+                P.protocol_of(exp, size)
         except P.ProtocolError as e:
             raise ResultsError(str(e).replace(f"experiments/{exp['id']}.json", where)) from None
         ok, message = P.window_ok(exp, size)

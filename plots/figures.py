@@ -24,7 +24,7 @@ import numpy as np  # noqa: E402
 
 from harness import stats as S  # noqa: E402
 from harness.fsio import write_atomic  # noqa: E402
-from harness.results import improvement, pick  # noqa: E402
+from harness.results import improvement, medians, pick  # noqa: E402
 
 plt.rcParams.update({"svg.hashsalt": "sphnl", "savefig.dpi": 110, "axes.grid": True,
                      "grid.alpha": 0.3, "font.size": 10, "legend.fontsize": 9})
@@ -411,8 +411,81 @@ def peers(data, out):
             f"[95 % interval]: {text}.")
 
 
+# ------------------------------------------------------ counters (valgrind)
+COUNTER_PHASES = (("neighbour_list", "neighbour list", "///"), ("force", "force", None),
+                  ("update", "update", ".."))
+COUNTER_METRICS = (("ir", "instructions"), ("d1_misses", "D1 misses"), ("ll_misses", "LL misses"))
+CACHE_MODELS = {"this_machine": "this machine's caches", "nehalem_2010": "2010 server (assumed: 8 MiB LL)"}
+
+
+def _counter_bars(data, out, fig_id, title, configs):
+    """Counts per particle-step (rows: cache models; columns: instructions,
+    D1 misses, LL misses), one group of bars per N, one bar per
+    configuration of `configs` ({label: column values}), stacked by phase of
+    Table I. Counts repeat exactly (one round): no intervals to draw."""
+    if not len(data) or (data["error_occurred"].astype(bool)).all():
+        raise NoData("no successful counters entries")
+    med = medians(data[~data["error_occurred"].astype(bool)])
+    models = [m for m in CACHE_MODELS if m in set(med.get("cache_model", []))]
+    if not models:
+        raise NoData("no cache_model among " + ", ".join(CACHE_MODELS))
+    ns_ = sorted(med["particles"].unique())
+    fig, axes = plt.subplots(len(models), len(COUNTER_METRICS), figsize=(15, 3.9 * len(models)), squeeze=False)
+    width = 0.8 / len(configs)
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for r, model in enumerate(models):
+        for c, (metric, what) in enumerate(COUNTER_METRICS):
+            ax = axes[r][c]
+            for k, (label, equal) in enumerate(configs.items()):
+                bottom = np.zeros(len(ns_))
+                for phase, phase_label, hatch in COUNTER_PHASES:
+                    ys = np.array([_count(med, metric, phase, particles=n, cache_model=model, **equal) for n in ns_])
+                    ax.bar(np.arange(len(ns_)) + (k - (len(configs) - 1) / 2) * width, ys, width, bottom=bottom,
+                           color=colours[k % len(colours)], hatch=hatch, edgecolor="white", lw=0.3,
+                           label=label if phase == "force" else None)
+                    bottom += ys
+            ax.set_xticks(range(len(ns_)), [f"N = {_fmt_n(n)}" for n in ns_])
+            ax.set(ylabel=f"{what} per particle-step", title=f"{what}, {CACHE_MODELS[model]}")
+            if r == 0 and c == 0:
+                ax.legend(fontsize=7)
+    fig.suptitle(title)
+    fig.text(0.99, -0.01, "bars stacked by phase: neighbour list (hatched ///), force (plain), update (dotted); "
+             "callgrind counts of one window, exact", ha="right", va="top", fontsize=7, color="0.4")
+    _save(fig, out, fig_id)
+    n, model = ns_[-1], models[-1]
+    parts = [f"{_plain(label).replace('$n_s$', 'n_s')} {_count(med, 'll_misses', None, particles=n, cache_model=model, **eq):.3g}"
+             for label, eq in configs.items()]
+    return (f"At N = {_fmt_n(n)} with the {CACHE_MODELS[model]}, LL misses per particle-step: "
+            + ", ".join(parts) + ".")
+
+
+def _count(med, metric, phase, **equal):
+    rows = pick(med, **equal)
+    if rows.empty:
+        raise NoData("no counters entry with " + ", ".join(f"{k}={v}" for k, v in equal.items()))
+    col = f"{metric}_{phase}_per_particle_step" if phase else f"{metric}_per_particle_step"
+    return float(rows[col].iloc[0])
+
+
+def counters_lists(data, out):
+    """Counts per particle-step by phase: CLL, VL_C and VL_X at n_s = 1 and 7."""
+    configs = {"CLL": {"list": "cll", "list_steps": 1}}
+    for lst in ("vlc", "vlx"):
+        for ns in (1, 7):
+            configs[f"{LISTS[lst]} $n_s$={ns}"] = {"list": lst, "list_steps": ns}
+    return _counter_bars(data, out, "counters_lists", "Counts per particle-step: lists (B, SortX, reordered)",
+                         configs)
+
+
+def counters_reorder(data, out):
+    """Counts per particle-step by phase: CLL with and without reordering."""
+    return _counter_bars(data, out, "counters_reorder", "Counts per particle-step: reordering (CLL, B, SortX)",
+                         {"not reordered": {"reorder": 0}, "reordered": {"reorder": 1}})
+
+
 FIGURES = {f.__name__: f for f in (fig06, fig07, fig08, fig09, fig10, fig11, fig12, fig13,
-                                   fig14, fig15, fig16, fig17, cellindex, beyond_threads, peers)}
+                                   fig14, fig15, fig16, fig17, cellindex, beyond_threads, peers,
+                                   counters_lists, counters_reorder)}
 
 PHASES = (("Neighbour List", "s_neighbour_list", "list"), ("Force Computation", "s_force", "force"),
           ("System Update", "s_update", "update"))

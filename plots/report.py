@@ -27,6 +27,7 @@ from harness import stats as S
 from harness.fsio import write_atomic
 from harness.results import NOT_RESULTS, ResultsError, errors, load_experiments, load_run
 from plots import claims as C
+from plots import explanations as X
 from plots import figures as F
 
 HERE = pathlib.Path(__file__).resolve().parent
@@ -42,7 +43,7 @@ TARGET_RESOLVED = 0.8  # share of claims not `unresolved`
 TINY_RESAMPLES = 50
 CLAIM_KEYS = ("id", "figure", "paper_value", "value", "ci_low", "ci_high", "unit", "at_n", "band",
               "verdict", "repetitions", "rounds", "resolve", "note", "per_flow_time",
-              "per_experiment", "related")
+              "per_experiment", "related", "explanation")
 
 
 def _num(value, unit):
@@ -230,6 +231,10 @@ def build(run_dir, exp_dir, resamples=None):
     for exp in experiments.values():
         for c in exp["claims"]:
             C.validate_claim(c, f"{exp_dir}/{exp['id']}.json")
+    entries = X.load(exp_dir)
+    problems = X.check_references(entries, exp_dir)
+    if problems:
+        raise ResultsError("explanations that name what does not exist:\n  " + "\n  ".join(problems))
     df = load_run(run_dir)
     machine_lines, machine = machine_section(run_dir)
     round_lines, flagged = rounds_section(run_dir)
@@ -260,7 +265,11 @@ def build(run_dir, exp_dir, resamples=None):
         except F.NoData as e:
             skipped.append(f"{exp_id} ({exp['figure']}): {e}")
 
+    explained = X.by_claim(entries)
+    for _, r in results:
+        r["explanation"] = explained.get(r["id"])
     records = [claim_record(exp, r) for exp, r in results]
+    why = X.section(X.evaluate_all(entries, df, resamples), {r["id"]: r["verdict"] for _, r in results})
     counts = collections.Counter(r["verdict"] for _, r in results)
     size = machine.get("size") or "?"
     out = [f"# {TITLE}", "",
@@ -315,6 +324,7 @@ def build(run_dir, exp_dir, resamples=None):
         out.append(f"| {figure_of(exp)} | {r['text']} (`{r['id']}`) | {fmt(r['paper_value'], r['unit'])} "
                    f"| {fmt_ci(r['value'], r['ci_low'], r['ci_high'], r['unit'])} | {r['verdict']} "
                    f"| {claim_note(r)} |")
+    out += [""] + why
     failed = errors(df)
     if failed:
         out += ["", "## Benchmarks that reported an error", ""] + \

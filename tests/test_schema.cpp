@@ -121,7 +121,7 @@ TEST(ExperimentSchema, WrongTypesAndValues) {
   EXPECT_HAS(all_errors(with(kValidStep, R"("threads": [1]},)", R"("threads": 1},)")), "sweep.tiny.threads: is 1; expected a non-empty array of values");
   EXPECT_HAS(all_errors(with(kValidStep, R"("flow_time": [0.35])", R"("flow_time": [0])")), "sweep.full.flow_time: value 0 is not allowed; expected a number > 0");
   EXPECT_HAS(all_errors(with(kValidStep, R"("window_steps": {"tiny": 3)", R"("window_steps": {"tiny": 0)")), "window_steps.tiny: is 0; expected an integer >= 1");
-  EXPECT_HAS(all_errors(with(kValidStep, R"("benchmark": "step")", R"("benchmark": "steps")")), "benchmark: is \"steps\"; expected one of step, cellindex, search");
+  EXPECT_HAS(all_errors(with(kValidStep, R"("benchmark": "step")", R"("benchmark": "steps")")), "benchmark: is \"steps\"; expected one of step, counters, cellindex, search");
   EXPECT_HAS(all_errors(with(kValidStep, R"("tiny": {"particles")", R"("small": {"particles")")), "sweep: unknown size 'small'; allowed: tiny, default, full");
 }
 
@@ -133,6 +133,24 @@ TEST(ExperimentSchema, ProtocolAndClaims) {
                             R"({"reps_per_round": 2})")),
             "");
   EXPECT_HAS(all_errors(with(kValidStep, R"({"id": "c1", )", R"({)")), "claims[0]: needs an 'id'");
+}
+
+TEST(ExperimentSchema, CountersKindNeedsACacheModel) {
+  // The step axes plus cache_model (harness/valgrind.py); no protocol needed.
+  std::string c = with(kValidStep, R"("benchmark": "step")", R"("benchmark": "counters")");
+  EXPECT_HAS(all_errors(c), "missing sweep axis 'cache_model' (required for benchmark 'counters')");
+  for (const char* size : {R"("threads": [1]},
+    "default")", R"("threads": [1]},
+    "full")", R"("flow_time": [0.35])"})
+    c = with(c, size, std::string(size).replace(std::string(size).find(']') + 1, 0, R"(, "cache_model": ["nehalem_2010"])"));
+  EXPECT_EQ(all_errors(c), "");
+  EXPECT_HAS(all_errors(with(c, R"(["nehalem_2010"])", R"(["epyc"])")),
+             "cache_model: value \"epyc\" is not allowed; expected \"this_machine\" or \"nehalem_2010\"");
+  EXPECT_HAS(all_errors(with(kValidStep, R"("flow_time": [0.35])", R"("flow_time": [0.35], "cache_model": ["this_machine"])")),
+             "unknown sweep axis 'cache_model' for benchmark 'step'");
+  EXPECT_EQ(all_errors(with(c, R"("claims": [)", R"("explanations": [{"id": "h"}], "claims": [)")), "");
+  EXPECT_HAS(all_errors(with(c, R"("claims": [)", R"("explanations": [{"hypothesis": "h"}], "claims": [)")),
+             "explanations[0]: needs an 'id'");
 }
 
 }  // namespace

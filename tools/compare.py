@@ -51,18 +51,13 @@ import time
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))  # run as a script (tools/compare.py): the harness package is at the root
+from harness import valgrind as V  # noqa: E402
 from harness.results import OLD_AXES, canonical_run_name  # noqa: E402
+from harness.valgrind import CMAKE_OPTIONS, TIMED_FUNCTION, gb_filter  # noqa: E402,F401
 
 EXPERIMENT = "experiments/compare.json"
 BENCH_TARGET = "sphnl_bench"
 BENCH_RELPATH = pathlib.Path("benchmarks") / BENCH_TARGET
-# The function the benchmark binary marks noinline and runs exactly one timed
-# window in; callgrind counts only inside it (docs/CONTRACTS.md §2).
-TIMED_FUNCTION = "sphnl::bench::timed_window*"
-# valgrind 3.19 dies on AVX-512 (SIGILL); x86-64-v3 is AVX2 + FMA.
-CMAKE_OPTIONS = ["-DCMAKE_BUILD_TYPE=Release", "-DSPHNL_MARCH=x86-64-v3",
-                 "-DSPHNL_BUILD_TESTS=OFF", "-DSPHNL_BUILD_BENCHMARKS=ON",
-                 "-DPython3_EXECUTABLE=/usr/bin/python3"]
 TIME_UNITS = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}
 LOG_TAIL_LINES = 40
 
@@ -113,27 +108,14 @@ def parse_gb_json(doc, source="benchmark JSON"):
 
 
 def parse_callgrind_ir(text, source="callgrind output"):
-    """Total instructions executed (event `Ir`) from a callgrind output file:
-    its `totals:` line, else its `summary:` line (callgrind writes both, in the
-    column order of the `events:` line)."""
-    events, values = None, {}
-    for line in text.splitlines():
-        key, sep, rest = line.partition(":")
-        if not sep:
-            continue
-        if key == "events":
-            events = rest.split()
-        elif key in ("totals", "summary"):
-            values[key] = rest.split()
-    if events is None:
-        events = ["Ir"]
-    if "Ir" not in events:
-        raise CompareError(f"{source}: no Ir event (events: {' '.join(events)})")
-    column = events.index("Ir")
-    for key in ("totals", "summary"):
-        if key in values and len(values[key]) > column:
-            return int(values[key][column])
-    raise CompareError(f"{source}: no 'totals:' or 'summary:' line; did valgrind finish?")
+    """Total instructions executed (event `Ir`) from a callgrind output file
+    (harness/valgrind.py reads it; a file without an `events:` line counts Ir only)."""
+    if not any(line.startswith("events:") for line in text.splitlines()):
+        text = "events: Ir\n" + text
+    try:
+        return V.parse_callgrind(text, source).total("Ir")
+    except V.ValgrindError as e:
+        raise CompareError(str(e)) from None
 
 
 # ============================================================= statistics
@@ -525,11 +507,6 @@ class Side:
     names: dict = dataclasses.field(default_factory=dict)  # today's name -> the name this bench writes
 
 
-def gb_filter(name):
-    """An anchored Google Benchmark filter matching exactly `name`."""
-    return "^" + re.sub(r"([\\^$.|?*+()\[\]{}])", r"\\\1", name) + "$"
-
-
 def bench_args(side, experiment, size, out_file, name=None):
     experiment = side.experiment or experiment
     args = [str(side.bench), f"--experiment={experiment}", f"--size={size}",
@@ -574,11 +551,6 @@ def experiment_for(side, experiment, size, work_dir):
     tail = "\n".join(out.splitlines()[-10:])
     raise CompareError(f"the {side.label} bench rejects {experiment}, in today's sweep-axis names "
                        f"and in the old ones; its message:\n{tail}")
-
-
-def valgrind_args(valgrind, out_file, command):
-    return [valgrind, "--tool=callgrind", f"--callgrind-out-file={out_file}",
-            f"--toggle-collect={TIMED_FUNCTION}", *command]
 
 
 def run_checked(cmd, side, log_path, what):
@@ -630,7 +602,7 @@ def callgrind_run(side, name, experiment, size, work_dir, valgrind):
     benchmark under callgrind; output and log files are named for the run."""
     stem = f"callgrind-{side.label}-" + re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
     cg_out, gb_out = (pathlib.Path(work_dir) / f"{stem}{ext}" for ext in (".out", ".json"))
-    cmd = valgrind_args(valgrind, cg_out, bench_args(side, experiment, size, gb_out, name))
+    cmd = V.callgrind_command(valgrind, cg_out, bench_args(side, experiment, size, gb_out, name))
     cg_out.unlink(missing_ok=True)
     run_checked(cmd, side, pathlib.Path(work_dir) / f"{stem}.log",
                 f"callgrind run of {side.label} {name}")

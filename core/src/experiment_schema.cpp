@@ -38,36 +38,42 @@ std::function<std::string(const json&)> one_of(std::vector<std::string> allowed)
   };
 }
 
+std::string cache_model_name(const json& v) {
+  return v.is_string() && (v == "this_machine" || v == "nehalem_2010") ? "" : "\"this_machine\" or \"nehalem_2010\"";
+}
+
 // Register a new sweep axis here (and, for its place in benchmark names, in the
 // family's axis list in benchmarks/ and FAMILY_KEYS of harness/results.py).
 const std::vector<Axis>& axes() {
   static const std::vector<Axis> table = {
-      {"particles", {"step", "cellindex", "search"}, {"step", "cellindex", "search"}, {}},
-      {"gridder", {"step", "search"}, {"step", "search"}, {}},
-      {"cell_order", {"step", "cellindex", "search"}, {"step", "cellindex", "search"}, {}},
-      {"reorder", {"step", "search"}, {"step", "search"}, {}},
-      {"list", {"step"}, {"step"}, {}},
-      {"list_steps", {"step"}, {"step"}, {}},
-      {"kgc", {"step"}, {"step"}, {}},
-      {"threads", {"step", "search"}, {"step", "search"}, {}},
-      {"lattice", {"step"}, {}, {}},
-      {"h_coefficient", {"step"}, {}, {}},
+      {"particles", {"step", "counters", "cellindex", "search"}, {"step", "counters", "cellindex", "search"}, {}},
+      {"gridder", {"step", "counters", "search"}, {"step", "counters", "search"}, {}},
+      {"cell_order", {"step", "counters", "cellindex", "search"}, {"step", "counters", "cellindex", "search"}, {}},
+      {"reorder", {"step", "counters", "search"}, {"step", "counters", "search"}, {}},
+      {"list", {"step", "counters"}, {"step", "counters"}, {}},
+      {"list_steps", {"step", "counters"}, {"step", "counters"}, {}},
+      {"kgc", {"step", "counters"}, {"step", "counters"}, {}},
+      {"threads", {"step", "counters", "search"}, {"step", "counters", "search"}, {}},
+      {"lattice", {"step", "counters"}, {}, {}},
+      {"h_coefficient", {"step", "counters"}, {}, {}},
       // simulated time of the developed flow the window starts from (s): picks
       // the snapshot, not a run setting
-      {"flow_time", {"step"}, {}, positive_number},
+      {"flow_time", {"step", "counters"}, {}, positive_number},
       // ablations (README.md, "Ablations"): optional, default the normal path
-      {"pair_loop", {"step"}, {}, {}},
-      {"simd", {"step"}, {}, {}},
-      {"skip_boundary_pairs", {"step"}, {}, {}},
-      {"gridder_a_variant", {"step"}, {}, {}},
-      {"initial_order", {"step"}, {}, {}},
-      {"extra_loops", {"step"}, {}, {}},
+      {"pair_loop", {"step", "counters"}, {}, {}},
+      {"simd", {"step", "counters"}, {}, {}},
+      {"skip_boundary_pairs", {"step", "counters"}, {}, {}},
+      {"gridder_a_variant", {"step", "counters"}, {}, {}},
+      {"initial_order", {"step", "counters"}, {}, {}},
+      {"extra_loops", {"step", "counters"}, {}, {}},
       // the search family's peers and clouds (benchmarks/search_benchmark.cpp;
       // a sweep without them means sphnl, lattice, generated, warm)
       {"impl", {"search"}, {}, one_of({"sphnl", "nanoflann"})},
       {"cloud", {"search"}, {}, one_of({"lattice", "random"})},
       {"memory_order", {"search"}, {}, one_of({"generated", "shuffled"})},
       {"call", {"search"}, {}, one_of({"warm", "first"})},
+      // the caches valgrind simulates for the counters kind (harness/valgrind.py)
+      {"cache_model", {"counters"}, {"counters"}, cache_model_name},
   };
   return table;
 }
@@ -203,11 +209,12 @@ class Checker {
     else protocol_fields(ptr, "protocol", v);
   }
 
-  void claims(const std::string& ptr, const json& v) {
-    if (!expect(ptr, "claims", v, v.is_array(), "an array of claim objects")) return;
+  /// An array of objects with an id: `claims`, `explanations`.
+  void claims(const std::string& ptr, const json& v, const std::string& what) {
+    if (!expect(ptr, what, v, v.is_array(), "an array of objects with an 'id'")) return;
     for (std::size_t i = 0; i < v.size(); ++i) {
       const json& c = v[i];
-      const std::string key = "claims[" + std::to_string(i) + "]";
+      const std::string key = what + "[" + std::to_string(i) + "]";
       if (!expect(ptr, key, c, c.is_object(), "an object with at least an 'id'")) continue;
       if (!c.contains("id") || !c["id"].is_string() || c["id"].get<std::string>().empty())
         error(ptr, key, "needs an 'id' (a non-empty string)");
@@ -238,8 +245,9 @@ class Checker {
         {"metric", string_key("metric")},
         {"benchmark",
          [&](const std::string& p, const json& v) {
-           expect(p, "benchmark", v, v.is_string() && (family == "step" || family == "cellindex" || family == "search"),
-                  "one of step, cellindex, search");
+           expect(p, "benchmark", v,
+                  v.is_string() && (family == "step" || family == "counters" || family == "cellindex" || family == "search"),
+                  "one of step, counters, cellindex, search");
          }},
         {"uses", [&](const std::string& p, const json& v) { expect(p, "uses", v, v.is_null() || v.is_string(), "null or an experiment id"); }},
         {"sweep",
@@ -258,7 +266,9 @@ class Checker {
            per_size(p, "repetitions", v, false, [&](const auto& sp, const auto& k, const json& x) { positive_int(sp, k, x); });
          }},
         {"protocol", [&](const std::string& p, const json& v) { protocol(p, v); }},
-        {"claims", [&](const std::string& p, const json& v) { claims(p, v); }},
+        {"claims", [&](const std::string& p, const json& v) { claims(p, v, "claims"); }},
+        // hypotheses for the claims not reproduced, tested by this experiment (plots/explanations.py checks the rest)
+        {"explanations", [&](const std::string& p, const json& v) { claims(p, v, "explanations"); }},
     };
     for (const auto& [key, value] : d.items()) {
       const auto it = std::find_if(top.begin(), top.end(), [&](const auto& t) { return key == t.first; });
@@ -272,7 +282,7 @@ class Checker {
     for (const char* required : {"id", "benchmark"})
       if (!d.contains(required)) errors_.push_back(doc_.name + ": missing top-level key '" + required + "'");
     if (!draws && !d.contains("sweep")) errors_.push_back(doc_.name + ": missing top-level key 'sweep' (or set 'uses')");
-    if (!draws && family == "step" && !d.contains("window_steps"))
+    if (!draws && (family == "step" || family == "counters") && !d.contains("window_steps"))
       errors_.push_back(doc_.name + ": missing top-level key 'window_steps' (steps timed per iteration, per size)");
     return errors_;
   }
