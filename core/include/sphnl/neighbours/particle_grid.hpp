@@ -33,7 +33,7 @@ class ParticleGrid {
   bool build(ParticleSet& ps, double cell_size, bool reorder, std::size_t owned = kAllOwned);
   static constexpr std::size_t kAllOwned = ~std::size_t{0};
   /// New index -> old index of the last build that reordered.
-  const std::vector<std::uint32_t>& permutation() const { return permutation_; }
+  std::span<const std::uint32_t> permutation() const { return sort_.permutation(); }
 
   const CellGrid& grid() const { return grid_; }
   const CellOrder& order() const { return *order_; }
