@@ -77,7 +77,7 @@ void register_step_benchmarks(const json& sweep, int window, const Options& opt,
   flow_times.erase(std::unique(flow_times.begin(), flow_times.end()), flow_times.end());
   for (const Point& p : cross_product(sweep, kAxes)) {
     const RunConfig cfg = run_config_of(p);  // validates every value before anything runs
-    const std::string name = benchmark_name("step", p, kAxes);
+    const std::string name = benchmark_name(family, p, kAxes);
     const double flow_time = flow_time_of(p);
     benchmark::RegisterBenchmark(name.c_str(),
                                  [cfg, flow_time, flow_times, window, cache = opt.cache_dir, name](benchmark::State& st) {

@@ -519,6 +519,9 @@ def parse_args(argv):
     p.add_argument("--only", help="comma-separated experiment ids (default: every experiment "
                                   "that draws a figure; a uses-only id runs its source)")
     p.add_argument("--force", action="store_true", help="rerun experiments already complete")
+    p.add_argument("--skip-counters", action="store_true",
+                   help="leave out the counters experiments (valgrind and `make counters-build`); "
+                        "the report then marks what needs them 'not measured'")
     p.add_argument("--cache-dir", type=pathlib.Path,
                    help="snapshot cache passed to the bench (default: RESULTS_DIR/cache)")
     p.add_argument("--max-n", type=int, metavar="N",
@@ -551,6 +554,8 @@ def main(argv=None):
     try:
         experiments = R.load_experiments(REPO / "experiments")
         chosen = select(experiments, args.only)
+        if args.skip_counters:
+            chosen = [e for e in chosen if e["benchmark"] != "counters"]
         if args.max_n is not None:
             capped = [restrict_particles(e, args.size, lambda n: n <= args.max_n) for e in chosen]
             for e in capped:

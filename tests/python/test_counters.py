@@ -147,7 +147,7 @@ class CountsRepeat(unittest.TestCase):
                 self.assertFalse(list(run_dir.glob(".*")), "the work folder was left behind")
         a, b = (d["benchmarks"] for d in docs)
         self.assertEqual(len(a), 1)
-        name = "counters/n:1500/gridder:B/order:sort_x/reorder:1/list:cll/ns:1/kgc:0/threads:1/cache_model:nehalem_2010"
+        name = "counters/particles:1500/gridder:B/cell_order:sort_x/reorder:1/list:cll/list_steps:1/kgc:0/threads:1/cache_model:nehalem_2010"
         self.assertEqual(a[0]["name"], name)
         counts = [k for k in a[0] if k.endswith(("_per_particle_step", "_total"))]
         self.assertGreater(len(counts), 10)

@@ -261,7 +261,7 @@ class TestStoredResults(unittest.TestCase):
 def run_fake(results_dir, seed):
     env = {**os.environ, "SPHNL_TEST_GIT_REVISION": "a" * 40, "SPHNL_TEST_GIT_DIRTY": "0", "FAKE_BENCH_SEED": str(seed)}
     p = subprocess.run([sys.executable, "-m", "experiments.run", "--size", "tiny", "--results-dir",
-                        str(results_dir), "--bench", str(FAKE), "--run-id", "r"],
+                        str(results_dir), "--bench", str(FAKE), "--run-id", "r", "--skip-counters"],
                        cwd=REPO, capture_output=True, text=True, env=env)
     if p.returncode:
         raise AssertionError(f"run.py failed ({p.returncode}):\n{p.stdout}\n{p.stderr}")
