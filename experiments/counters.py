@@ -100,12 +100,43 @@ def entry(name, bench_entry, profile, model, seconds):
 
 
 def _stem(name):
-    """A fixed-length file stem per configuration. The bench copies its path
-    arguments into the heap, and the heap layout decides which cache sets the
-    data falls in: so every valgrind run starts in its work folder with the
-    same relative paths (experiment.json, cache/ are links there), whatever
-    the names of the run folder and the cache."""
+    """A fixed-length file stem per configuration (see valgrind_env: every
+    argument of a valgrind run has the same length whatever the folders)."""
     return "cg-" + hashlib.sha256(name.encode()).hexdigest()[:16]
+
+
+# Variables a valgrind run inherits from the caller's environment; the rest
+# is dropped (see valgrind_env).
+KEPT_ENV_PREFIXES = ("OMP_", "GOMP_", "SPHNL_MEMORY_AVAILABLE")
+
+
+def valgrind_env(env):
+    """The environment of a valgrind run, the same whoever starts it.
+
+    Which cache sets the data fall in depends on where they lie, and a
+    process's stack starts below its environment and arguments: one more
+    variable of 20 bytes moved the stack and changed the simulated D1 misses
+    by 0.25 % here (docs/MEASUREMENT.md). So the run gets a fixed minimal
+    environment (OpenMP settings, a fixed PATH and locale, glibc's mmap
+    threshold), starts in its work folder with the same relative paths
+    (experiment.json, cache/, the bench as ./bench: links there), and runs
+    without address-space randomisation where setarch allows it."""
+    out = {k: v for k, v in env.items() if k.startswith(KEPT_ENV_PREFIXES)}
+    out.update({"PATH": "/usr/bin:/bin", "LC_ALL": "C", "GLIBC_TUNABLES": MALLOC_TUNABLE})
+    return dict(sorted(out.items()))
+
+
+def no_aslr_prefix():
+    """['setarch', '-R'] where it works here (a container may forbid the
+    personality call), else []."""
+    setarch = shutil.which("setarch")
+    if setarch is None:
+        return []
+    try:
+        ok = subprocess.run([setarch, "-R", "true"], capture_output=True, timeout=30).returncode == 0
+    except (OSError, subprocess.TimeoutExpired):
+        ok = False
+    return [setarch, "-R"] if ok else []
 
 
 def bench_command(bench, exp_file, size, cache_dir, out_file, name=None, warmup=True):
@@ -129,19 +160,19 @@ def _run(cmd, log, env, cwd):
         raise CountersError(f"exit status {proc.returncode} of\n  {' '.join(cmd)}\nlast lines of {log}:\n  {tail}")
 
 
-def count_one(name, model, *, valgrind, bench, size, work, env):
+def count_one(name, model, *, valgrind, size, work, env, no_aslr):
     """(entry, bench context) of one configuration under callgrind, run in
-    `work` (which holds the links experiment.json and cache)."""
+    `work` (which holds the links experiment.json, cache and bench)."""
     stem = _stem(name)
     cg_out, gb_out, log = (work / f"{stem}{s}" for s in (".out", ".json", ".log"))
     for old in V.dump_files(cg_out) + [cg_out, gb_out, log]:
         old.unlink(missing_ok=True)
-    cmd = V.callgrind_command(valgrind, f"{stem}.out",
-                              bench_command(bench, "experiment.json", size, "cache", f"{stem}.json", name),
-                              cache=model, dump_per_window=True)
-    tunables = ":".join(filter(None, [env.get("GLIBC_TUNABLES"), MALLOC_TUNABLE]))
+    cmd = no_aslr + V.callgrind_command(valgrind, f"{stem}.out",
+                                        bench_command("./bench", "experiment.json", size, "cache",
+                                                      f"{stem}.json", name),
+                                        cache=model, dump_per_window=True)
     start = time.monotonic()
-    _run(cmd, log, {**env, "GLIBC_TUNABLES": tunables}, work)
+    _run(cmd, log, valgrind_env(env), work)
     seconds = time.monotonic() - start
     dumps = V.dump_files(cg_out)
     if len(dumps) != WINDOWS_PER_RUN:
@@ -223,8 +254,9 @@ def run(args, exp, out_path, label, env, progress=print):
         _run(bench_command(pathlib.Path(args.counters_bench).resolve(), "experiment.json", size, "cache",
                            "native.json", warmup=False), work / "native.log", env, work)
         entries, context = {}, {}
-        common = dict(valgrind=args.valgrind, bench=pathlib.Path(args.counters_bench).resolve(), size=size,
-                      work=work, env=env)
+        (work / "bench").symlink_to(pathlib.Path(args.counters_bench).resolve())
+        common = dict(valgrind=shutil.which(args.valgrind), size=size, work=work, env=env,
+                      no_aslr=no_aslr_prefix())
         with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as pool:
             futures = {pool.submit(count_one, name, models[p["cache_model"]], **common): name
                        for name, p in zip(names, points)}
