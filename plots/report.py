@@ -40,7 +40,7 @@ VERDICTS = C.VERDICTS
 TARGET_PP = 2.0        # improvement claims at N >= 31 000: half-width at most 2 pp
 TARGET_RATIO = 5.0     # ratio claims: half-width at most 5 % of the value
 TARGET_RESOLVED = 0.8  # share of claims not `unresolved`
-TINY_RESAMPLES = 50
+TINY_RESAMPLES = 20  # a tiny run is a smoke test of the pipeline: its intervals mean nothing
 CLAIM_KEYS = ("id", "figure", "paper_value", "value", "ci_low", "ci_high", "unit", "at_n", "band",
               "verdict", "repetitions", "rounds", "resolve", "note", "per_flow_time",
               "per_experiment", "related", "explanation")
@@ -240,10 +240,11 @@ def build(run_dir, exp_dir, resamples=None):
     round_lines, flagged = rounds_section(run_dir)
     figs_dir = run_dir / "figures"
     figures, skipped, table_md, results = [], [], None, []
+    tiny = machine.get("size") == "tiny"
     if resamples is None:  # a tiny run's numbers say nothing: few replicates keep make test fast
-        resamples = TINY_RESAMPLES if machine.get("size") == "tiny" else S.RESAMPLES
-    evaluator = C.Evaluator(df, resamples=resamples)
-    F.RESAMPLES = max(50, resamples // 4)
+        resamples = TINY_RESAMPLES if tiny else S.RESAMPLES
+    evaluator = C.Evaluator(df, resamples=resamples, per_experiment_resamples=min(100, resamples))
+    F.RESAMPLES = min(resamples, TINY_RESAMPLES) if tiny else max(50, resamples // 4)
     for exp_id, exp in experiments.items():
         drawn = exp_id == "table1" or exp_id in F.FIGURES
         if not drawn and not exp["claims"]:
@@ -340,7 +341,7 @@ def main(argv=None):
     p.add_argument("--experiments-dir", type=pathlib.Path, default=HERE.parent / "experiments")
     p.add_argument("--resamples", type=int, default=None,
                    help=f"bootstrap replicates per claim (default {S.RESAMPLES}, {TINY_RESAMPLES} for a tiny "
-                        "run; figures use a quarter, at least 50)")
+                        "run; figures use a quarter, at least 50; a tiny run's figures {TINY_RESAMPLES})")
     p.add_argument("--publish", type=pathlib.Path, metavar="FILE",
                    help="also write the report to FILE (e.g. results/REPRODUCTION.md, the "
                         "reference copy), its figure links rewritten to point into the run folder")

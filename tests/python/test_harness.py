@@ -579,9 +579,12 @@ class TestFiguresAndReport(TempDirCase):
         cls.run_dir, _ = fake_run(cls.base, "tiny")
         cls.df = R.load_run(cls.run_dir)
         cls.exps = R.load_experiments(REPO / "experiments")
+        # few replicates: these tests check what is drawn, not the intervals
+        cls.saved_resamples, F.RESAMPLES = F.RESAMPLES, 20
 
     @classmethod
     def tearDownClass(cls):
+        F.RESAMPLES = cls.saved_resamples
         shutil.rmtree(cls.base, ignore_errors=True)
 
     def timed_figures(self):
