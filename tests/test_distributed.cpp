@@ -42,6 +42,22 @@ TEST(Distributed, KernelGradientCorrectionMatchesSerial) {
   expect_ranks_match_serial(sc, {3});
 }
 
+TEST(Distributed, ExtraLoopChecksumIsTheSerialOne) {
+  // extra_loops' checksum (the trace sum of M_a) counts each particle once,
+  // on its owner, and is summed over ranks: the serial value up to summation
+  // order (a rank's ghosts hold partial M_a and must not enter it).
+  Scenario sc = scenario_with(ListKind::cll);
+  sc.config.extra_loops = 1;
+  sc.steps = 3;
+  const Outcome serial = run_scenario(sc, nullptr);
+  ASSERT_GT(serial.extra_loop_checksum, 0.0);
+  for (const int p : {2, 3}) {
+    SCOPED_TRACE("P = " + std::to_string(p));
+    const Outcome dist = run_threads(sc, p);
+    EXPECT_NEAR(dist.extra_loop_checksum, serial.extra_loop_checksum, 1e-12 * serial.extra_loop_checksum);
+  }
+}
+
 TEST(Distributed, EveryOrderAndGridderMatchesSerial) {
   // Every gridder and every order once, with each list (B and sort_x above).
   const std::pair<CellOrderKind, GridderKind> combos[] = {{CellOrderKind::sort_xyz, GridderKind::A},
