@@ -74,7 +74,7 @@ class Terms(unittest.TestCase):
         self.assertEqual(vl["rank_vector_sum"], 0)
         self.assertAlmostEqual(vl["exchange_bytes"], 500 * 56 / 1e9)
 
-    def test_extrapolation_in_n_uses_the_fitted_exponent(self):
+    def test_extrapolation_in_n_by_similar_ranges_or_the_surface_rule(self):
         def row(n, owned, ghosts):
             return {"N": n, "P": 4, "owned_max": owned, "ghosts_max": ghosts, "ghost_bytes_build_max": 80 * ghosts,
                     "work_owned": float(owned), "work_ghost": float(ghosts), "total_weight": 4.0 * owned}
