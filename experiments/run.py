@@ -32,6 +32,7 @@ import threading
 import time
 
 from experiments import counters as CNT
+from experiments import mpi_runs as MPI
 from harness import machine as M
 from harness import protocol as P
 from harness import results as R
@@ -97,6 +98,8 @@ ROUND_OVERHEAD_S = 0.3  # bench start, snapshot load, JSON
 def round_seconds(exp, size):
     """Model of one round: every configuration's warm-up + repetitions."""
     reps = P.protocol_of(exp, size)["reps_per_round"]
+    if exp["benchmark"] == "mpi":
+        return MPI.estimate_seconds(exp, size, step_seconds) / P.protocol_of(exp, size)["min_rounds"]
     if exp["benchmark"] == "step":
         window = exp["window_steps"][size]
         per = [step_seconds(p) * window for p in R.sweep_points(exp, size)]
@@ -114,6 +117,8 @@ def estimate_seconds(exp, size):
         return 0.0
     if exp["benchmark"] == "counters":
         return CNT.estimate_seconds(exp, size, step_seconds)
+    if exp["benchmark"] == "mpi":
+        return MPI.estimate_seconds(exp, size, step_seconds)
     return round_seconds(exp, size) * P.protocol_of(exp, size)["min_rounds"]
 
 
@@ -289,18 +294,6 @@ def resume_plan(args, exp, out_path):
     return restrict_particles(exp, args.size, lambda n: n in rerun), doc
 
 
-def metric_samples(entries, exp):
-    """{run name: [[values of one round], ...]} of the experiment's metric (`metric`
-    of the file, else s_per_step, else real time): what the adaptive stop
-    must know precisely."""
-    key = exp.get("metric", "s_per_step")
-    out = collections.defaultdict(lambda: collections.defaultdict(list))
-    for e in entries:
-        if not e.get("error_occurred"):
-            out[e["run_name"]][e["sphnl_round"]].append(e.get(key, e.get("real_time")))
-    return {name: list(by_round.values()) for name, by_round in out.items()}
-
-
 class Bench:
     """One bench process (a round): started, its stdout counted for progress,
     its stderr tail kept for the error message."""
@@ -412,7 +405,7 @@ def run_experiment(args, exp, out_path, label):
             entries += round_entries
             rounds.append(record)
             elapsed = time.monotonic() - start
-            reason = P.stop_reason(metric_samples(entries, exp), proto, len(rounds), elapsed,
+            reason = P.stop_reason(P.metric_samples(entries, exp), proto, len(rounds), elapsed,
                                    elapsed / len(rounds))
             if record["under_load"]:
                 print(f"  {exp['id']}: round {k + 1} ran under load (load average "
@@ -456,6 +449,15 @@ def run_counters(args, exp, out_path, label):
         return CNT.run(args, exp, out_path, label, bench_env(args),
                        progress=lambda msg: print(msg, flush=True))
     except (CNT.CountersError, R.ResultsError) as e:
+        raise RunError(str(e), 2) from None
+
+
+def run_mpi(args, exp, out_path, label):
+    """An `mpi` experiment (experiments/mpi_runs.py): `sphnl run` under
+    mpirun, rounds of interleaved runs; its errors end the run like a bench failure."""
+    try:
+        return MPI.run(args, exp, out_path, label, bench_env(args), progress=lambda msg: print(msg, flush=True))
+    except (MPI.MpiRunError, R.ResultsError) as e:
         raise RunError(str(e), 2) from None
 
 
@@ -512,6 +514,9 @@ def parse_args(argv):
                    default=REPO / "build-counters/benchmarks/sphnl_bench",
                    help="the bench valgrind runs for the counters experiments (default: "
                         "build-counters/benchmarks/sphnl_bench, built by `make counters-build`)")
+    p.add_argument("--sphnl", type=pathlib.Path, default=REPO / "build/sphnl",
+                   help="the sphnl command the mpi experiments run (default: build/sphnl)")
+    p.add_argument("--mpirun", default="mpirun", help="MPI launcher of the mpi experiments (default: mpirun)")
     p.add_argument("--valgrind", default="valgrind", help="valgrind executable (counters experiments)")
     p.add_argument("--counters-jobs", type=int, default=2,
                    help="valgrind processes at a time for the counters experiments (default 2; the "
@@ -545,6 +550,7 @@ def parse_args(argv):
     args.cache_dir = (args.cache_dir or args.results_dir / "cache").resolve()
     args.bench = args.bench.resolve() if args.bench.exists() else args.bench
     args.counters_bench = args.counters_bench.resolve() if args.counters_bench.exists() else args.counters_bench
+    args.sphnl = args.sphnl.resolve() if args.sphnl.exists() else args.sphnl
     args.repo, args.step_seconds = REPO, step_seconds
     return args
 
@@ -621,6 +627,8 @@ def main(argv=None):
                           "left at the rate measured so far", flush=True)
                 if exp["benchmark"] == "counters":
                     measured += run_counters(args, exp, out, f"[{k}/{len(todo)}]")
+                elif exp["benchmark"] == "mpi":
+                    measured += run_mpi(args, exp, out, f"[{k}/{len(todo)}]")
                 else:
                     measured += run_experiment(args, exp, out, f"[{k}/{len(todo)}]")
                 modelled += estimate_seconds(exp, args.size)

@@ -3,6 +3,7 @@ repetitions per round, the adaptive stop, and the window rule for Verlet-list
 comparisons. Pure functions of the experiment definition and the samples, so
 that experiments/run.py stays a driver and the rules are unit-tested.
 """
+import collections
 import math
 
 SIZES = ("tiny", "default", "full")
@@ -74,7 +75,7 @@ def window_ok(exp, size):
     of every n_s compared (whole list lifetimes, so no configuration pays for
     a build whose list it does not use) and cover at least LIST_LIFETIMES
     lifetimes of the largest n_s (paper section 2.5: a list lives n_s steps)."""
-    if exp.get("uses") or exp.get("benchmark") not in ("step", "counters"):
+    if exp.get("uses") or exp.get("benchmark") not in ("step", "counters", "mpi"):
         return True, ""
     ns = compared_ns(exp, size)
     window = exp["window_steps"].get(size)
@@ -91,6 +92,18 @@ def window_ok(exp, size):
 
 
 # ------------------------------------------------------------------ the stop
+def metric_samples(entries, exp):
+    """{run name: [[values of one round], ...]} of the experiment's metric (`metric`
+    of the file, else s_per_step, else real time): what the adaptive stop
+    must know precisely."""
+    key = exp.get("metric", "s_per_step")
+    out = collections.defaultdict(lambda: collections.defaultdict(list))
+    for e in entries:
+        if not e.get("error_occurred"):
+            out[e["run_name"]][e["sphnl_round"]].append(e.get(key, e.get("real_time")))
+    return {name: list(by_round.values()) for name, by_round in out.items()}
+
+
 def median_halfwidth_pct(rounds, confidence=0.95, resamples=2000, seed=0):
     """Half-width, in percent of the median, of a percentile-bootstrap
     interval of the median of one configuration's repetitions, given as one

@@ -31,6 +31,8 @@ FAMILY_KEYS = {
                  "threads", "lattice", "h_coefficient", "flow_time",
                  "pair_loop", "simd", "skip_boundary_pairs", "gridder_a_variant", "initial_order",
                  "extra_loops", "cache_model"],
+    # `sphnl run` under mpirun (the mpi kind, experiments/mpi_runs.py): ranks x threads
+    "mpi": ["particles", "list", "list_steps", "ranks", "threads"],
 }
 # The flow time (s) a step window starts from when the sweep has no flow_time axis.
 DEFAULT_FLOW_TIME = 0.35
@@ -53,6 +55,7 @@ AXIS_DEFAULTS = {
     "counters": _STEP_DEFAULTS,  # cache_model has none: a counters sweep names it
     "cellindex": {},
     "search": {"impl": "sphnl", "cloud": "lattice", "memory_order": "generated", "call": "warm"},
+    "mpi": {},
 }
 # Axes filled in from AXIS_DEFAULTS when a name lacks them (lattice and h
 # coefficient stay absent in step rows, as the figures and claims expect).
@@ -138,8 +141,10 @@ def sweep_points(exp, size):
     """Every point of the cross product exp['sweep'][size], as dicts."""
     sweep = exp["sweep"][size]
     axes = axes_in_order(exp["benchmark"], list(sweep))
-    return [dict(zip(axes, combo))
-            for combo in itertools.product(*(sweep[a] for a in axes))]
+    points = [dict(zip(axes, combo)) for combo in itertools.product(*(sweep[a] for a in axes))]
+    # the mpi kind: `max_cores` leaves out the layouts that would need more cores
+    cores = exp.get("max_cores")
+    return [p for p in points if not cores or p.get("ranks", 1) * p.get("threads", 1) <= cores]
 
 
 def point_key(params, axes):

@@ -491,6 +491,81 @@ def sphnl_over_nanoflann(med, c):
         f"{note}; geometric mean over {len(common)} paired configurations", related
 
 
+# ------------------------------------------------- beyond the paper: ranks (mpi kind)
+def _on(med, ranks, threads, **equal):
+    """Rows of the layout `ranks` x `threads`."""
+    return pick(med, ranks=ranks, threads=threads, **equal)
+
+
+def _vlx_gain_per_rank(med, ranks):
+    """VL_X's improvement over CLL (n_s = 7, 1 thread per rank) of the runs
+    on `ranks`, indexed by the particles per rank N/P."""
+    if "ranks" not in med:
+        raise NotMeasured("no ranks axis in the results (the mpi kind)")
+    rows = pick(med, threads=1, list_steps=7)
+    rows = rows[rows["ranks"].isin(ranks)]
+    key = rows["particles"].astype(str) + "/" + rows["ranks"].astype(str)
+    g = _gain_series(rows.assign(layout_key=key), {"list": "cll"}, {"list": "vlx"}, "layout_key", "n_per_rank")
+    if g.empty:
+        raise NotMeasured(f"no CLL / VL_X pair on {sorted(ranks)} rank(s)")
+    return g
+
+
+@claim("vlx_gain_few_particles_per_rank")
+def vlx_gain_few_particles_per_rank(med, c):
+    """The paper's conjecture (Conclusions) that a parallel code, each node
+    holding few particles, suits VL_X: the improvement of VL_X over CLL at the
+    smallest N/P of the distributed runs; related, the improvement at every
+    N/P (serial runs included) and the fitted change of a + b ln(N/P) from
+    the largest N/P to the smallest (positive: the gain grows as N/P falls)."""
+    if "ranks" not in med:
+        raise NotMeasured("no ranks axis in the results (the mpi kind)")
+    ranks = sorted(int(r) for r in med["ranks"].unique() if r > 1)
+    if not ranks:
+        raise NotMeasured("no run on more than one rank")
+    dist = _vlx_gain_per_rank(med, ranks)
+    every = _vlx_gain_per_rank(med, sorted(int(r) for r in med["ranks"].unique()))
+    related = {f"gain_at_n_per_rank_{x:.0f}": float(v) for x, v in every.items()}
+    if len(every) >= 3:
+        x = np.log(every.index.to_numpy(float))
+        related["fitted_change_largest_to_smallest"] = float(
+            -np.polyfit(x, every.to_numpy(float), 1)[0] * (x.max() - x.min()))
+    n = dist.index.min()
+    return float(dist.loc[n]), f"N/P = {_n_str(n)}, on {'/'.join(map(str, ranks))} ranks of 1 thread", related
+
+
+def _target_at(med, c):
+    if "ranks" not in med:
+        raise NotMeasured("no ranks axis in the results (the mpi kind)")
+    n, note = _at(med, c)
+    return n, note.replace("(paper: ", "(claim read at ")  # a target of ours, not the paper's
+
+
+@claim("mpi_2ranks_vs_2threads")
+def mpi_2ranks_vs_2threads(med, c):
+    """Speed of 2 ranks x 1 thread over 1 rank x 2 threads (CLL): t(1 x 2) / t(2 x 1)."""
+    n, note = _target_at(med, c)
+    at = pick(med, particles=n)
+    ratio = _one(_on(at, 1, 2), list="cll") / _one(_on(at, 2, 1), list="cll")
+    related = {}
+    if len(_on(at, 1, 2, list="vlx")) and len(_on(at, 2, 1, list="vlx")):
+        related["vlx_ratio"] = _one(_on(at, 1, 2), list="vlx") / _one(_on(at, 2, 1), list="vlx")
+    return ratio, f"{note}; speed of 2 ranks over 2 threads, CLL", related
+
+
+@claim("mpi_communication_share")
+def mpi_communication_share(med, c):
+    """Communication share of the step (slowest rank, waits included), CLL on 2 ranks x 1 thread."""
+    n, note = _target_at(med, c)
+    if "communication_share" not in med:
+        raise NotMeasured("no communication_share counter in the results")
+    at = _on(pick(med, particles=n), 2, 1)
+    related = {}
+    if len(pick(at, list="vlx")):
+        related["vlx_share_pct"] = 100 * _one(at, "communication_share", list="vlx")
+    return 100 * _one(at, "communication_share", list="cll"), f"{note}; CLL, 2 ranks x 1 thread", related
+
+
 # ------------------------------------------------------------------ verdicts
 def validate_claim(c, where):
     """Every band two-sided, finite, reproduced inside partly, with a reason."""

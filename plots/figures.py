@@ -483,9 +483,100 @@ def counters_reorder(data, out):
                          {"not reordered": {"reorder": 0}, "reordered": {"reorder": 1}})
 
 
+# ------------------------------------------------------------ ranks (mpi kind)
+LAYOUTS = {(2, 1): "2 ranks x 1 thread", (1, 2): "1 rank x 2 threads", (2, 2): "2 ranks x 2 threads",
+           (4, 1): "4 ranks x 1 thread", (1, 4): "1 rank x 4 threads"}
+
+
+def _layout_label(ranks, threads):
+    return LAYOUTS.get((ranks, threads), f"{ranks} ranks x {threads} threads")
+
+
+def _mpi_speedups(med):
+    """Speed-up over 1 rank x 1 thread against N, one curve per list and layout."""
+    out = []
+    for lst in ("cll", "vlx"):
+        one = pick(med, list=lst, ranks=1, threads=1).set_index("particles")
+        for (r, t), part in pick(med, list=lst).groupby(["ranks", "threads"]):
+            if r * t == 1:
+                continue
+            part = part.set_index("particles")
+            common = one.index.intersection(part.index).sort_values()
+            if len(common):
+                out.append((f"{LISTS[lst]}, {_layout_label(r, t)}", one.loc[common, "N"].to_numpy(float),
+                            (one.loc[common, "t"] / part.loc[common, "t"]).to_numpy(float)))
+    return out
+
+
+def _mpi_gain_per_rank(med):
+    """VL_X's improvement over CLL against N/P, one curve per rank count (1 thread per rank)."""
+    out = []
+    for r in sorted(med["ranks"].unique()):
+        imp = improvement(pick(med, ranks=r, threads=1), {"list": "cll"}, {"list": "vlx"}, x="n_per_rank")
+        if len(imp):
+            out.append((f"{r} rank{'s' if r > 1 else ''} x 1 thread", imp["n_per_rank"].to_numpy(float),
+                        imp["imp"].to_numpy(float)))
+    return out
+
+
+def _mpi_comm_share(med):
+    out = []
+    for lst in ("cll", "vlx"):
+        for (r, t), part in pick(med, list=lst).groupby(["ranks", "threads"]):
+            if r > 1:
+                part = part.sort_values("N")
+                out.append((f"{LISTS[lst]}, {_layout_label(r, t)}", part["N"].to_numpy(float),
+                            100 * part["communication_share"].to_numpy(float)))
+    return out
+
+
+def beyond_mpi(data, out):
+    """Beyond the paper: ranks and threads (sphnl run under mpirun): speed-up
+    over one core, VL_X's improvement against the particles per rank N/P, and
+    the communication share of the step."""
+    med = _med(data, family="mpi")
+    if "ranks" not in med.point:
+        raise NoData("no ranks axis (the mpi kind)")
+    speed = med.curves(_mpi_speedups) if _mpi_speedups(med.point) else []
+    gain = med.curves(_mpi_gain_per_rank) if _mpi_gain_per_rank(med.point) else []
+    comm = med.curves(_mpi_comm_share) if _mpi_comm_share(med.point) else []
+    if not speed and not gain:
+        raise NoData("needs runs on 1 x 1 and more cores, or CLL and VL_X pairs")
+    fig, axes = plt.subplots(1, 3, figsize=(19.2, 4.4))
+    for ax, (ylabel, xlabel, curves, zero) in zip(axes, (
+            ("speed-up over 1 rank x 1 thread", N_LABEL, speed, False),
+            ("VL$_X$ improvement over CLL (%)", "N / P (particles per rank)", gain, True),
+            ("communication share of the step (%)", N_LABEL, comm, False))):
+        for i, (label, xs, ys, lo, hi) in enumerate(curves):
+            ax.errorbar(xs, ys, yerr=[np.clip(ys - lo, 0, None), np.clip(hi - ys, 0, None)],
+                        marker=MARKERS[i % len(MARKERS)], capsize=3, label=label)
+        ax.set_xscale("log")
+        if zero:
+            ax.axhline(0, color="0.3", lw=0.8)
+        else:
+            ax.set_ylim(bottom=0)
+        ax.set(xlabel=xlabel, ylabel=ylabel)
+        if curves:
+            ax.legend()
+    fig.suptitle("Beyond the paper: CLL and VL$_X$ ($n_s$ = 7) on ranks and threads "
+                 "(windows from t = 0, slowest rank)")
+    fig.text(0.99, -0.01, "medians; bars: 95 % bootstrap intervals (paired by round)",
+             ha="right", va="top", fontsize=7, color="0.4")
+    _save(fig, out, "beyond_mpi")
+    parts = []
+    if speed:
+        n, text = _at_end(speed, "x", best="max")
+        parts.append(f"At N = {_fmt_n(n)}, speed-up over one core: {text}.")
+    if gain:
+        parts.append("VL_X improvement over CLL at the smallest N/P of each rank count: " + ", ".join(
+            f"{_plain(lab)} {ys[0]:.3g} % [{lo[0]:.3g}, {hi[0]:.3g}] at N/P = {_fmt_n(xs[0])}"
+            for lab, xs, ys, lo, hi in gain) + ".")
+    return " ".join(parts)
+
+
 FIGURES = {f.__name__: f for f in (fig06, fig07, fig08, fig09, fig10, fig11, fig12, fig13,
                                    fig14, fig15, fig16, fig17, cellindex, beyond_threads, peers,
-                                   counters_lists, counters_reorder)}
+                                   counters_lists, counters_reorder, beyond_mpi)}
 
 PHASES = (("Neighbour List", "s_neighbour_list", "list"), ("Force Computation", "s_force", "force"),
           ("System Update", "s_update", "update"))

@@ -311,11 +311,11 @@ def build(run_dir, exp_dir, resamples=None):
     out += ["Targets:", ""] + targets([r for _, r in results]) + [""]
     out += ["## Figures", ""]
     for exp, sentence in figures:
-        out += [f"### {exp['figure']}: {exp['title']}", ""]
+        out += [f"### {figure_of(exp)}: {exp['title']}", ""]
         if exp["id"] == "table1":
             out += [table_md.rstrip(), ""]
         else:
-            out += [f"![{exp['figure']}](figures/{exp['id']}.png)", ""]
+            out += [f"![{figure_of(exp)}](figures/{exp['id']}.png)", ""]
         out += [sentence, ""]
     if skipped:
         out += ["Skipped:", ""] + [f"- {s}" for s in skipped] + [""]

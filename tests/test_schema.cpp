@@ -109,7 +109,7 @@ TEST(ExperimentSchema, BenchmarkOnlyAxesAreTheOnesThatAreNotConfigKeys) {
   // the snapshot's flow time, the search family's peers and clouds, the
   // counters kind's simulated caches: none of them is a run setting
   const std::vector<std::string> only = benchmark_only_axes();
-  EXPECT_EQ(only, (std::vector<std::string>{"flow_time", "impl", "cloud", "memory_order", "call", "cache_model"}));
+  EXPECT_EQ(only, (std::vector<std::string>{"flow_time", "impl", "cloud", "memory_order", "call", "cache_model", "ranks"}));
   const std::vector<std::string> keys = config_keys();
   for (const auto& axis : only) EXPECT_EQ(std::count(keys.begin(), keys.end(), axis), 0) << axis;
 }
@@ -158,6 +158,20 @@ TEST(ExperimentSchema, CountersKindNeedsACacheModel) {
   EXPECT_EQ(all_errors(with(c, R"("claims": [)", R"("explanations": [{"id": "h"}], "claims": [)")), "");
   EXPECT_HAS(all_errors(with(c, R"("claims": [)", R"("explanations": [{"hypothesis": "h"}], "claims": [)")),
              "explanations[0]: needs an 'id'");
+}
+
+TEST(ExperimentSchema, MpiKindHasRanksAndMaxCores) {
+  // `sphnl run` under mpirun (experiments/mpi_runs.py): config keys plus the launcher's ranks.
+  const std::string sweep = R"({"particles": [3000], "list": ["cll"], "list_steps": [7], "ranks": [1, 2], "threads": [1]})";
+  const std::string m = std::string(R"({"id": "e", "benchmark": "mpi", "max_cores": 2, "sweep": {"tiny": )") + sweep +
+                        R"(, "default": )" + sweep + R"(, "full": )" + sweep +
+                        R"(}, "window_steps": {"tiny": 21, "default": 21, "full": 21}, "claims": []})";
+  EXPECT_EQ(all_errors(m), "");
+  EXPECT_HAS(all_errors(with(m, R"("ranks": [1, 2])", R"("ranks": [0, 2])")),
+             "sweep.tiny.ranks: value 0 is not allowed; expected an integer >= 1");
+  EXPECT_HAS(all_errors(with(m, R"(, "ranks": [1, 2])", "")), "missing sweep axis 'ranks' (required for benchmark 'mpi')");
+  EXPECT_HAS(all_errors(with(m, R"("max_cores": 2)", R"("max_cores": 0)")), "max_cores: is 0; expected an integer >= 1");
+  EXPECT_HAS(all_errors(with(m, R"("list": ["cll"])", R"("gridder": ["B"])")), "unknown sweep axis 'gridder' for benchmark 'mpi'");
 }
 
 }  // namespace

@@ -38,6 +38,10 @@ std::function<std::string(const json&)> one_of(std::vector<std::string> allowed)
   };
 }
 
+std::string positive_integer(const json& v) {
+  return v.is_number_integer() && v.get<long>() >= 1 ? "" : "an integer >= 1";
+}
+
 std::string cache_model_name(const json& v) {
   return v.is_string() && (v == "this_machine" || v == "nehalem_2010") ? "" : "\"this_machine\" or \"nehalem_2010\"";
 }
@@ -46,14 +50,14 @@ std::string cache_model_name(const json& v) {
 // family's axis list in benchmarks/ and FAMILY_KEYS of harness/results.py).
 const std::vector<Axis>& axes() {
   static const std::vector<Axis> table = {
-      {"particles", {"step", "counters", "cellindex", "search"}, {"step", "counters", "cellindex", "search"}, {}},
+      {"particles", {"step", "counters", "cellindex", "search", "mpi"}, {"step", "counters", "cellindex", "search", "mpi"}, {}},
       {"gridder", {"step", "counters", "search"}, {"step", "counters", "search"}, {}},
       {"cell_order", {"step", "counters", "cellindex", "search"}, {"step", "counters", "cellindex", "search"}, {}},
       {"reorder", {"step", "counters", "search"}, {"step", "counters", "search"}, {}},
-      {"list", {"step", "counters"}, {"step", "counters"}, {}},
-      {"list_steps", {"step", "counters"}, {"step", "counters"}, {}},
+      {"list", {"step", "counters", "mpi"}, {"step", "counters", "mpi"}, {}},
+      {"list_steps", {"step", "counters", "mpi"}, {"step", "counters", "mpi"}, {}},
       {"kgc", {"step", "counters"}, {"step", "counters"}, {}},
-      {"threads", {"step", "counters", "search"}, {"step", "counters", "search"}, {}},
+      {"threads", {"step", "counters", "search", "mpi"}, {"step", "counters", "search", "mpi"}, {}},
       {"lattice", {"step", "counters"}, {}, {}},
       {"h_coefficient", {"step", "counters"}, {}, {}},
       // simulated time of the developed flow the window starts from (s): picks
@@ -74,6 +78,9 @@ const std::vector<Axis>& axes() {
       {"call", {"search"}, {}, one_of({"warm", "first"})},
       // the caches valgrind simulates for the counters kind (harness/valgrind.py)
       {"cache_model", {"counters"}, {"counters"}, cache_model_name},
+      // processes of a distributed `sphnl run` under mpirun (the mpi kind,
+      // experiments/mpi_runs.py): a launcher setting, not a config key
+      {"ranks", {"mpi"}, {"mpi"}, positive_integer},
   };
   return table;
 }
@@ -246,8 +253,9 @@ class Checker {
         {"benchmark",
          [&](const std::string& p, const json& v) {
            expect(p, "benchmark", v,
-                  v.is_string() && (family == "step" || family == "counters" || family == "cellindex" || family == "search"),
-                  "one of step, counters, cellindex, search");
+                  v.is_string() && (family == "step" || family == "counters" || family == "cellindex" || family == "search" ||
+                                     family == "mpi"),
+                  "one of step, counters, cellindex, search, mpi");
          }},
         {"uses", [&](const std::string& p, const json& v) { expect(p, "uses", v, v.is_null() || v.is_string(), "null or an experiment id"); }},
         {"sweep",
@@ -266,6 +274,8 @@ class Checker {
            per_size(p, "repetitions", v, false, [&](const auto& sp, const auto& k, const json& x) { positive_int(sp, k, x); });
          }},
         {"protocol", [&](const std::string& p, const json& v) { protocol(p, v); }},
+        // the mpi kind: sweep points with ranks x threads above this are left out
+        {"max_cores", [&](const std::string& p, const json& v) { positive_int(p, "max_cores", v); }},
         {"claims", [&](const std::string& p, const json& v) { claims(p, v, "claims"); }},
         // hypotheses for the claims not reproduced, tested by this experiment (plots/explanations.py checks the rest)
         {"explanations", [&](const std::string& p, const json& v) { claims(p, v, "explanations"); }},
@@ -282,7 +292,7 @@ class Checker {
     for (const char* required : {"id", "benchmark"})
       if (!d.contains(required)) errors_.push_back(doc_.name + ": missing top-level key '" + required + "'");
     if (!draws && !d.contains("sweep")) errors_.push_back(doc_.name + ": missing top-level key 'sweep' (or set 'uses')");
-    if (!draws && (family == "step" || family == "counters") && !d.contains("window_steps"))
+    if (!draws && (family == "step" || family == "counters" || family == "mpi") && !d.contains("window_steps"))
       errors_.push_back(doc_.name + ": missing top-level key 'window_steps' (steps timed per iteration, per size)");
     return errors_;
   }

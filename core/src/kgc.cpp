@@ -9,9 +9,10 @@ void clear_kgc_matrices(ParticleSet& ps) {
   for (auto& m : ps.kgc_m) std::fill(m.begin(), m.end(), 0.0);
 }
 
-double kgc_trace_sum(const ParticleSet& ps) {
+double kgc_trace_sum(const ParticleSet& ps, std::size_t count) {
+  const std::size_t n = std::min(count, ps.size());
   double sum = 0;
-  for (std::size_t i = 0; i < ps.size(); ++i) sum += ps.kgc_m[0][i] + ps.kgc_m[3][i] + ps.kgc_m[5][i];
+  for (std::size_t i = 0; i < n; ++i) sum += ps.kgc_m[0][i] + ps.kgc_m[3][i] + ps.kgc_m[5][i];
   return sum;
 }
 

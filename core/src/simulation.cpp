@@ -176,7 +176,11 @@ template <class KgcMatrix>
 double Simulation::extra_loop_pass(std::vector<KgcMatrix>& kgc_ops) {
   clear_kgc_matrices(ps_);
   for_each_pair(kgc_ops);
-  return kgc_trace_sum(ps_);
+  // The owned particles' traces, summed over ranks: P ranks give the serial
+  // checksum up to summation order (ghosts hold partial M_a, and are counted
+  // by their owners).
+  const double local = kgc_trace_sum(ps_, owned());
+  return domain_ ? domain_->sum(local) : local;
 }
 
 double Simulation::extra_loop_pass() {

@@ -589,9 +589,10 @@ class TestFiguresAndReport(TempDirCase):
 
     def timed_figures(self):
         """Every figure the fake bench can feed: the counters figures are drawn
-        from valgrind counts (tests/python/test_counters.py)."""
+        from valgrind counts (tests/python/test_counters.py), beyond_mpi from
+        `sphnl run` under mpirun (tests/python/test_beyond_mpi.py)."""
         return {fig_id: fn for fig_id, fn in F.FIGURES.items()
-                if self.exps[self.exps[fig_id].get("uses") or fig_id]["benchmark"] != "counters"}
+                if self.exps[self.exps[fig_id].get("uses") or fig_id]["benchmark"] not in ("counters", "mpi")}
 
     def draw_all(self, out):
         for fig_id, fn in self.timed_figures().items():

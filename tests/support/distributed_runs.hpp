@@ -48,6 +48,7 @@ struct Outcome {
   std::size_t lost = 0;
   double mass = 0, initial_mass = 0;
   std::uint64_t builds = 0;
+  double extra_loop_checksum = 0;  // extra_loops: the trace sum of M_a, over every rank's owned particles
   // over ranks (distributed runs only)
   double min_fluid_owned = 0;     // fewest fluid particles a rank owned at the start
   double migrated = 0;            // particles that changed rank
@@ -92,6 +93,7 @@ inline Outcome run_scenario(const Scenario& sc, Communicator* comm) {
   o.mass = sim.total_mass();
   o.lost = sim.lost();
   o.builds = sim.neighbour_stats().builds;
+  o.extra_loop_checksum = sim.neighbour_stats().extra_loop_checksum;
   if (!comm) {
     o.particles = sim.particles();
     return o;

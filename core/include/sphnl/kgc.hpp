@@ -52,7 +52,9 @@ static_assert(PairOperation<KgcMatrixOp> && PairOperation<KgcMatrixPass<false>>)
 
 /// Sum over the particles of the trace of M_a: the observable result of the
 /// extra pair passes of `extra_loops` (a checksum; M_a is not applied).
-double kgc_trace_sum(const ParticleSet& ps);
+/// Only particles [0, count): a distributed run's own (its ghosts' M_a are
+/// partial sums, and each is some other rank's own particle).
+double kgc_trace_sum(const ParticleSet& ps, std::size_t count = ~std::size_t{0});
 
 /// Zeroes M_a of every particle before the pre-pass.
 void clear_kgc_matrices(ParticleSet& ps);

@@ -95,8 +95,9 @@ class Simulation {
   double list_skin() const { return policy_.skin(flow_state()); }
   /// One pass of `extra_loops` over the pairs of the current neighbour
   /// structures: M_a of KGC (KgcMatrixOp) into the particles' kgc_m, not
-  /// applied; returns the sum of the traces of M_a (the checksum that
-  /// NeighbourStats::extra_loop_checksum adds up). Public for its test.
+  /// applied; returns the sum of the traces of M_a over the owned particles
+  /// of every rank (the checksum that NeighbourStats::extra_loop_checksum
+  /// adds up; collective in a distributed run). Public for its test.
   double extra_loop_pass();
   /// Seed of `initial_order=shuffled`.
   static constexpr std::uint64_t kShuffleSeed = 20111;

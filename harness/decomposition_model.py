@@ -1,0 +1,346 @@
+"""A model of the distributed runs without processes (docs/FINDINGS.md,
+"Distributed runs: a projection"): the decomposition of the real particle
+distribution of the dam break along the SortX or Hilbert cell order, as
+core/src/parallel/decomposition.cpp cuts it, and a network model of the
+step's communication built from the calls the code makes.
+
+Decomposition (the code's rules, checked against `mpirun sphnl run` in
+tests/python/test_decomposition_model.py):
+  cells of side `cell` (2h for CLL) over the case's domain; keys along SortX
+  (eq. 8: cz ncx ncy + cy ncx + cx) or Hilbert (every cell ranked by its
+  index on the padded cube, core/src/orderings/hilbert.cpp); weights fluid 1, boundary 1/4 per
+  particle; rank r's range ends after the first key where the running weight
+  reaches total r / P (KeyPartition::balanced); a cell's particles are a
+  ghost on every other rank owning one of its 26 neighbour cells
+  (Decomposition::ghost_destinations).
+
+Communication per step, one term per call of the code (core/mpi/ranks_mpi.cpp:
+`exchange` is MPI_Alltoall of the counts + MPI_Alltoallv; `sum` is an
+MPI_Allgather, summed in rank order; `max` an MPI_Allreduce):
+  CLL (a build every step): the rebalance check sums a P-vector, then two
+  exchanges (migration, ghosts: 10 doubles per ghost), max of 3 values
+  (dt, eq. 7), max (V_max) and sum (lost) in the update;
+  VL_X between builds: one max (the rebuild vote), one exchange (ghost
+  refresh: 7 doubles per ghost), the same three reductions.
+The network: a message of b bytes costs `latency` + b / `bandwidth`; an
+all-to-all (pairwise, as OpenMPI's for these sizes) costs P - 1 messages on
+every rank; an allreduce or allgather of b bytes per rank log2(P) latencies
+and (P - 1) b / bandwidth (recursive doubling / ring).
+"""
+import math
+
+import numpy as np
+
+FLUID, BOUNDARY = "fluid", "boundary"
+WEIGHT = {FLUID: 1.0, BOUNDARY: 0.25}  # DomainExchange::weight
+GHOST_DOUBLES, REFRESH_DOUBLES = 10, 7  # pack_ghost, refresh_ghosts (domain_exchange.cpp)
+# Network defaults (parameters of `project`): an InfiniBand EDR/HDR-class
+# cluster interconnect, one MPI message's latency and a node's bandwidth.
+LATENCY_S = 1.5e-6
+BANDWIDTH_BPS = 10e9
+TANK_HEIGHT = 0.75  # the domain's room above the walls for splashes (core/src/case.cpp)
+
+
+class ModelError(Exception):
+    """The model cannot be made from these inputs; the message says why."""
+
+
+def grid_of(x, y, z, h, cell):
+    """(lo, n) of the case's CellGrid: every particle plus 2h (core/src/case.cpp),
+    the top raised by the tank height, cells of side `cell` (ceil per axis)."""
+    pos = (x, y, z)
+    lo = np.array([p.min() - 2 * h for p in pos])
+    hi = np.array([p.max() + 2 * h for p in pos])
+    hi[2] += TANK_HEIGHT
+    n = np.maximum(1, np.ceil((hi - lo) * (1.0 / cell)).astype(np.int64))
+    return lo, n
+
+
+def sort_x_keys(x, y, z, lo, n, cell):
+    """SortX keys (eq. 8) of the particles, cell coordinates clamped into the grid as CellGrid::coord."""
+    inv = 1.0 / cell
+    c = [np.clip(((p - lo[d]) * inv).astype(np.int64), 0, n[d] - 1) for d, p in enumerate((x, y, z))]
+    return c[2] * n[0] * n[1] + c[1] * n[0] + c[0]
+
+
+def bits_for(n):
+    """morton::bits_for: the bits of the padded cube's side."""
+    b = 0
+    while (1 << b) < n:
+        b += 1
+    return b
+
+
+def hilbert_index(x, y, z, bits):
+    """hilbert::index (core/src/orderings/hilbert.cpp, Skilling's transpose
+    algorithm), element-wise on arrays of cell coordinates."""
+    X = [np.asarray(v, dtype=np.uint64).copy() for v in (x, y, z)]
+    M = 1 << (bits - 1)
+    Q = M
+    while Q > 1:
+        P = Q - 1
+        for i in range(3):
+            hit = (X[i] & Q) != 0
+            t = (X[0] ^ X[i]) & P
+            X[0] = np.where(hit, X[0] ^ P, X[0] ^ t)
+            if i:
+                X[i] = np.where(hit, X[i], X[i] ^ t)
+        Q >>= 1
+    for i in (1, 2):
+        X[i] ^= X[i - 1]
+    t = np.zeros_like(X[2])
+    Q = M
+    while Q > 1:
+        t = np.where((X[2] & Q) != 0, t ^ (Q - 1), t)
+        Q >>= 1
+    for i in range(3):
+        X[i] ^= t
+    h = np.zeros_like(X[0])
+    for q in range(bits - 1, -1, -1):
+        for i in range(3):
+            h = (h << np.uint64(1)) | ((X[i] >> np.uint64(q)) & np.uint64(1))
+    return h
+
+
+def hilbert_rank(n):
+    """Hilbert::prepare: every real cell's rank along the curve, indexed by its SortX key."""
+    bits = max(1, bits_for(int(n[0])), bits_for(int(n[1])), bits_for(int(n[2])))
+    c = np.arange(int(n[0] * n[1] * n[2]), dtype=np.int64)
+    cz, rem = np.divmod(c, n[0] * n[1])
+    cy, cx = np.divmod(rem, n[0])
+    order = np.argsort(hilbert_index(cx, cy, cz, bits), kind="stable")
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    return rank
+
+
+def balanced(weights, ranks):
+    """KeyPartition::balanced: begins[0..P] (begins[P] = number of keys)."""
+    nkeys = len(weights)
+    if ranks > nkeys:
+        raise ModelError(f"{ranks} ranks for {nkeys} cells: every rank must own at least one cell")
+    running = np.cumsum(weights)
+    total = float(running[-1]) if nkeys else 0.0
+    begins = np.full(ranks + 1, nkeys, dtype=np.int64)
+    begins[0] = 0
+    for r in range(1, ranks):
+        i = int(np.searchsorted(running, total * r / ranks, side="left"))
+        if i < nkeys:
+            begins[r] = i + 1
+    for q in range(1, ranks):
+        begins[q] = max(begins[q], begins[q - 1] + 1)
+    for q in range(ranks - 1, 0, -1):
+        begins[q] = min(begins[q], nkeys - (ranks - q))
+    return begins
+
+
+def owner(begins, keys):
+    """KeyPartition::owner: the last rank whose range begins at or before the key."""
+    return np.searchsorted(begins[:-1], keys, side="right") - 1
+
+
+def decompose(x, y, z, types, h, cell, ranks_list, order="sort_x"):
+    """{P: counts} of the dam break's particles cut into P ranks along the
+    cell order `order` (sort_x or hilbert): owned particles and weights,
+    ghosts received and the ranks they come from."""
+    if order not in ("sort_x", "hilbert"):
+        raise ModelError(f"cell order {order!r}: the model has sort_x and hilbert")
+    lo, n = grid_of(x, y, z, h, cell)
+    sortx = sort_x_keys(x, y, z, lo, n, cell)
+    to_key = hilbert_rank(n) if order == "hilbert" else None
+
+    def key_of(k):  # SortX key -> the order's key
+        return k if to_key is None else to_key[k]
+    keys = key_of(sortx)
+    nkeys = int(n[0] * n[1] * n[2])
+    w = np.where(types == FLUID, WEIGHT[FLUID], WEIGHT[BOUNDARY])
+    weights = np.bincount(keys, weights=w, minlength=nkeys)
+    cells_x, per_cell = np.unique(sortx, return_counts=True)  # occupied cells, by SortX key
+    cells = key_of(cells_x)
+    cz, rem = np.divmod(cells_x, n[0] * n[1])
+    cy, cx = np.divmod(rem, n[0])
+    out = {}
+    for ranks in ranks_list:
+        if ranks > nkeys:
+            continue
+        begins = balanced(weights, ranks)
+        home = owner(begins, cells)
+        pairs = []  # (cell index, destination rank) of every ghost copy
+        for dz in (-1, 0, 1):
+            for dy in (-1, 0, 1):
+                for dx in (-1, 0, 1):
+                    if dx == dy == dz == 0:
+                        continue
+                    nx, ny, nz = cx + dx, cy + dy, cz + dz
+                    ok = (nx >= 0) & (nx < n[0]) & (ny >= 0) & (ny < n[1]) & (nz >= 0) & (nz < n[2])
+                    idx = np.nonzero(ok)[0]
+                    r = owner(begins, key_of(nz[idx] * n[0] * n[1] + ny[idx] * n[0] + nx[idx]))
+                    far = r != home[idx]
+                    pairs.append(idx[far] * (ranks + 1) + r[far])
+        pairs = np.unique(np.concatenate(pairs)) if pairs else np.array([], dtype=np.int64)
+        cell_idx, dest = np.divmod(pairs, ranks + 1)
+        ghosts = np.bincount(dest, weights=per_cell[cell_idx], minlength=ranks).astype(np.int64)
+        src = home[cell_idx]
+        links = np.unique(dest * ranks + src)
+        partners = np.bincount(links // ranks, minlength=ranks)
+        owned = np.bincount(home, weights=per_cell, minlength=ranks).astype(np.int64)
+        rank_w = np.bincount(home, weights=weights[cells], minlength=ranks)
+        ghost_w = np.bincount(dest, weights=weights[cells][cell_idx], minlength=ranks)
+        out[ranks] = {"owned": owned, "ghosts": ghosts, "partners": partners, "weight": rank_w,
+                      "ghost_weight": ghost_w, "cells": nkeys, "occupied_cells": len(cells)}
+    return out
+
+
+def summary_row(n_particles, ranks, c):
+    """The counts of one (N, P) as the numbers the projection needs."""
+    owned, ghosts, w = c["owned"], c["ghosts"], c["weight"]
+    work = w + c["ghost_weight"]  # a ghost's pairs are computed as an owned particle's
+    busiest = int(np.argmax(work))
+    return {"work_owned": float(w[busiest]), "work_ghost": float(c["ghost_weight"][busiest]),
+            "total_weight": float(w.sum()),"N": int(n_particles), "P": int(ranks), "owned_max": int(owned.max()), "owned_min": int(owned.min()),
+            "ghosts_max": int(ghosts.max()), "ghosts_mean": float(ghosts.mean()),
+            "ghosts_total": int(ghosts.sum()), "partners_max": int(c["partners"].max()),
+            "imbalance": float(w.max() / w.mean() - 1.0) if w.mean() > 0 else 0.0,
+            "ghost_bytes_build_max": int(ghosts.max()) * GHOST_DOUBLES * 8,
+            "cells": int(c["cells"]), "occupied_cells": int(c["occupied_cells"])}
+
+
+# ------------------------------------------------------------------ scaling N
+def fit_exponent(rows, key, ranks):
+    """alpha of key ∝ N^alpha at P = ranks, from the two largest N measured."""
+    pts = sorted((r["N"], r[key]) for r in rows if r["P"] == ranks and r[key] > 0)
+    if len(pts) < 2:
+        return None
+    (n0, v0), (n1, v1) = pts[-2], pts[-1]
+    return math.log(v1 / v0) / math.log(n1 / n0)
+
+
+GHOST_EXPONENT = 2.0 / 3.0
+# The similarity variable of each order's ranges, as a power of N at fixed
+# cells per particle (cells ∝ N): a Hilbert range is a compact blob whose
+# shape depends on its cells, C ∝ N / P; a SortX range is a part of a stack
+# of z-planes of cells, whose shape depends on the ranks per plane ∝ P / N^(1/3).
+SIMILAR_P_EXPONENT = {"hilbert": 1.0, "sort_x": 1.0 / 3.0}
+
+
+def _ratios(row):
+    """The busiest rank's work and counts in units of the mean share (scale-free)."""
+    share_w, share_n = row["total_weight"] / row["P"], row["N"] / row["P"]
+    return {"work_owned": row["work_owned"] / share_w, "work_ghost": row["work_ghost"] / share_w,
+            "owned_max": row["owned_max"] / share_n, "ghosts_max": row["ghosts_max"] / share_n}
+
+
+def extrapolate(rows, n_target, ranks, order="sort_x"):
+    """Counts at N = n_target, P = ranks: measured if there, else scaled from
+    the largest N counted (N0) by one of two documented rules.
+    Similar ranges: refining the case at fixed geometry (h ∝ dx, N ∝ dx^-3)
+    with P' = P (N0 / N)^k ranks at N0 (k = SIMILAR_P_EXPONENT of the order)
+    gives ranges of the same shape in cells, so the busiest rank's owned and
+    ghost work in units of the mean share are those counted at (N0, P'),
+    interpolated in log P' between the counted P. Where P' < 2 (ranks hold
+    more cells than the counted case has), ranks are in the thin-surface
+    regime and the fixed-P rule applies: owned ∝ N, ghosts ∝ N^(2/3) (a
+    layer of cells one cell thick) from the largest N counted at that P.
+    The partners are those counted at the nearest P'."""
+    here = [r for r in rows if r["P"] == ranks]
+    exact = [r for r in here if r["N"] == n_target]
+    if exact:
+        return dict(exact[0], extrapolated=False)
+    if not rows:
+        return None
+    n0 = max(r["N"] for r in rows)
+    base = sorted((r for r in rows if r["N"] == n0), key=lambda r: r["P"])
+    p_sim = ranks * (n0 / n_target) ** SIMILAR_P_EXPONENT[order]
+    total_w = base[0]["total_weight"] * n_target / n0
+    if p_sim >= 2 and p_sim <= base[-1]["P"]:
+        ps = np.log([r["P"] for r in base])
+        rat = {k: float(np.interp(math.log(p_sim), ps, [_ratios(r)[k] for r in base]))
+               for k in ("work_owned", "work_ghost", "owned_max", "ghosts_max")}
+        near = min(base, key=lambda r: abs(math.log(r["P"] / p_sim)))
+        share_w, share_n = total_w / ranks, n_target / ranks
+        g = rat["ghosts_max"] * share_n
+        return {**near, "N": int(n_target), "P": ranks, "total_weight": total_w,
+                "work_owned": rat["work_owned"] * share_w, "work_ghost": rat["work_ghost"] * share_w,
+                "owned_max": rat["owned_max"] * share_n, "ghosts_max": g, "ghost_bytes_build_max": g * GHOST_DOUBLES * 8,
+                "similar_p": p_sim, "extrapolated": True}
+    if not here:
+        return None
+    b = max(here, key=lambda r: r["N"])
+    s = n_target / b["N"]
+    g = s ** GHOST_EXPONENT
+    return {**b, "N": int(n_target), "owned_max": b["owned_max"] * s, "ghosts_max": b["ghosts_max"] * g,
+            "work_owned": b["work_owned"] * s, "work_ghost": b["work_ghost"] * g, "total_weight": b["total_weight"] * s,
+            "ghost_bytes_build_max": b["ghosts_max"] * g * GHOST_DOUBLES * 8, "similar_p": p_sim, "extrapolated": True}
+
+
+# ------------------------------------------------------------------ the step
+def message_s(nbytes, latency, bandwidth):
+    return latency + nbytes / bandwidth
+
+
+def alltoall_s(ranks, nbytes_total, latency, bandwidth):
+    """An exchange: MPI_Alltoall of one int per rank, then MPI_Alltoallv of
+    `nbytes_total` leaving this rank; both pairwise: P - 1 messages each."""
+    if ranks == 1:
+        return 0.0
+    return 2 * (ranks - 1) * latency + (4 * (ranks - 1) + nbytes_total) / bandwidth
+
+
+def allreduce_s(ranks, nbytes, latency, bandwidth):
+    return 0.0 if ranks == 1 else math.log2(ranks) * latency + 2 * nbytes / bandwidth
+
+
+def allgather_s(ranks, nbytes_each, latency, bandwidth):
+    return 0.0 if ranks == 1 else math.ceil(math.log2(ranks)) * latency + (ranks - 1) * nbytes_each / bandwidth
+
+
+def step_terms(row, s_per_particle_step, lst="cll", latency=LATENCY_S, bandwidth=BANDWIDTH_BPS,
+               exchange="alltoall"):
+    """Seconds per step of the busiest rank, by term. Compute: the work of its
+    owned particles plus its ghosts in the balancing weights (fluid 1,
+    boundary 1/4; pairs across a boundary are computed on both sides and
+    ghost-ghost pairs too, docs/DESIGN.md, so a ghost weighs as an owned
+    particle), at the measured serial cost: s_per_particle_step x N over
+    the total weight per unit of weight.
+    exchange="neighbour": the exchanges as MPI_Neighbor_alltoallv over the
+    ranks that share a ghost layer (`partners_max` messages instead of P - 1,
+    no count all-to-all: the counts are known from the send lists)."""
+    p = row["P"]
+    per_weight = s_per_particle_step * row["N"] / row["total_weight"]
+    terms = {"compute": per_weight * (row["work_owned"] + (row["work_ghost"] if p > 1 else 0))}
+    if p == 1:
+        return {**terms, "exchange_latency": 0.0, "exchange_bytes": 0.0, "reductions": 0.0, "rank_vector_sum": 0.0}
+    doubles = GHOST_DOUBLES if lst == "cll" else REFRESH_DOUBLES
+    exchanges = 2 if lst == "cll" else 1  # CLL: migration + ghosts; VL_X between builds: the refresh
+    ghost_bytes = row["ghosts_max"] * doubles * 8
+    if exchange == "neighbour":
+        terms["exchange_latency"] = exchanges * row.get("partners_max", p - 1) * latency
+    else:
+        terms["exchange_latency"] = exchanges * alltoall_s(p, 0, latency, bandwidth)
+    terms["exchange_bytes"] = ghost_bytes / bandwidth
+    red = allreduce_s(p, 24, latency, bandwidth) + allreduce_s(p, 8, latency, bandwidth) \
+        + allgather_s(p, 8, latency, bandwidth) + (allreduce_s(p, 8, latency, bandwidth) if lst != "cll" else 0)
+    terms["reductions"] = red
+    # the rebalance check of every CLL build: a P-vector summed in rank order (an allgather of P doubles)
+    terms["rank_vector_sum"] = allgather_s(p, 8 * p, latency, bandwidth) if lst == "cll" else 0.0
+    return terms
+
+
+def project(rows, n_list, ranks_list, s_per_particle_step, lst="cll", latency=LATENCY_S,
+            bandwidth=BANDWIDTH_BPS, exchange="alltoall", order="sort_x"):
+    """[{N, P, terms..., step_s, efficiency, extrapolated}] of every (N, P)
+    the counts reach (measured or extrapolated in N)."""
+    out = []
+    for n in n_list:
+        serial = s_per_particle_step * n
+        for p in ranks_list:
+            row = extrapolate(rows, n, p, order)
+            if row is None:
+                continue
+            terms = step_terms(row, s_per_particle_step, lst, latency, bandwidth, exchange)
+            step = sum(terms.values())
+            comm = step - terms["compute"]
+            out.append({"N": n, "P": p, **terms, "step_s": step, "communication_share": comm / step,
+                        "efficiency": serial / (p * step), "ghosts_max": row["ghosts_max"],
+                        "owned_max": row["owned_max"], "extrapolated": row.get("extrapolated", False)})
+    return out

@@ -1,0 +1,129 @@
+"""harness/decomposition_model.py: the code's decomposition rules on synthetic
+weights, the network terms, and (with SPHNL_BUILD_DIR and mpirun) the ghost
+and owned counts of a real `mpirun -np 3 sphnl run` reproduced exactly."""
+import json
+import math
+import os
+import shutil
+import subprocess
+import tempfile
+import unittest
+from pathlib import Path
+
+import numpy as np
+
+from harness import decomposition_model as D
+
+
+class Partition(unittest.TestCase):
+    def test_hilbert_index_of_the_unit_cube_is_a_path_of_unit_steps(self):
+        c = np.arange(8)
+        h = D.hilbert_index(c & 1, (c >> 1) & 1, c >> 2, 1)
+        self.assertEqual(sorted(h.tolist()), list(range(8)))
+        pts = np.stack([c & 1, (c >> 1) & 1, c >> 2], axis=1)[np.argsort(h)]
+        self.assertTrue((np.abs(np.diff(pts, axis=0)).sum(axis=1) == 1).all())
+        rank = D.hilbert_rank(np.array([4, 4, 4]))
+        self.assertEqual(sorted(rank.tolist()), list(range(64)))
+
+    def test_cuts_where_the_running_weight_reaches_each_share(self):
+        # KeyPartition::balanced on 8 keys of weight 1: P = 4 -> ranges of 2
+        self.assertEqual(list(D.balanced(np.ones(8), 4)), [0, 2, 4, 6, 8])
+        # all the weight in one key: every rank still gets a key
+        self.assertEqual(list(D.balanced(np.array([0, 0, 5.0, 0, 0]), 3)), [0, 3, 4, 5])
+        with self.assertRaisesRegex(D.ModelError, "every rank must own at least one cell"):
+            D.balanced(np.ones(2), 3)
+
+    def test_owner_is_the_last_rank_beginning_at_or_before_the_key(self):
+        begins = np.array([0, 2, 4, 6, 8])
+        self.assertEqual(list(D.owner(begins, np.arange(8))), [0, 0, 1, 1, 2, 2, 3, 3])
+
+    def test_a_slab_of_cells_sends_its_boundary_planes(self):
+        # a 4 x 4 x 4 block of particles, one per cell of side 1: two ranks own two
+        # z-planes each and receive the other's adjacent plane (16 cells) as ghosts
+        g = np.arange(4) + 0.5
+        x, y, z = (a.ravel() for a in np.meshgrid(g, g, g, indexing="ij"))
+        types = np.array(["fluid"] * x.size)
+        h = 1e-9  # no margin: the grid starts at the first particle
+        counts = D.decompose(x - 0.5, y - 0.5, z - 0.5, types, h, 1.0, [1, 2])
+        self.assertEqual(list(counts[1]["ghosts"]), [0])
+        self.assertEqual(list(counts[2]["owned"]), [32, 32])
+        self.assertEqual(list(counts[2]["ghosts"]), [16, 16])
+        self.assertEqual(list(counts[2]["partners"]), [1, 1])
+
+
+class Terms(unittest.TestCase):
+    ROW = {"P": 64, "N": 64000, "total_weight": 64000.0, "owned_max": 1000, "ghosts_max": 500,
+           "work_owned": 1000.0, "work_ghost": 500.0}
+
+    def test_one_rank_is_compute_only(self):
+        t = D.step_terms({"P": 1, "N": 1000, "total_weight": 400.0, "work_owned": 400.0, "work_ghost": 0.0,
+                          "owned_max": 1000, "ghosts_max": 0}, 1e-6)
+        self.assertEqual(sum(t.values()), t["compute"])
+        self.assertAlmostEqual(t["compute"], 1e-3)  # the serial step, whatever the weights
+
+    def test_terms_follow_the_calls_of_the_code(self):
+        t = D.step_terms(self.ROW, 1e-6, latency=1e-6, bandwidth=1e9)
+        self.assertAlmostEqual(t["compute"], 1.5e-3)  # a ghost costs an owned particle
+        # 2 exchanges x (alltoall of the counts + alltoallv): P - 1 messages each, 4 B a count
+        self.assertAlmostEqual(t["exchange_latency"], 2 * (2 * 63 * 1e-6 + 4 * 63 / 1e9))
+        self.assertAlmostEqual(t["exchange_bytes"], 500 * 80 / 1e9)
+        self.assertAlmostEqual(t["rank_vector_sum"], 6e-6 + 63 * 8 * 64 / 1e9)
+        nb = D.step_terms({**self.ROW, "partners_max": 2}, 1e-6, latency=1e-6, bandwidth=1e9, exchange="neighbour")
+        self.assertAlmostEqual(nb["exchange_latency"], 2 * 2 * 1e-6)  # 2 exchanges of 2 messages
+        vl = D.step_terms(self.ROW, 1e-6, "vlx", latency=1e-6, bandwidth=1e9)
+        self.assertEqual(vl["rank_vector_sum"], 0)
+        self.assertAlmostEqual(vl["exchange_bytes"], 500 * 56 / 1e9)
+
+    def test_extrapolation_in_n_by_similar_ranges_or_the_surface_rule(self):
+        def row(n, owned, ghosts):
+            return {"N": n, "P": 4, "owned_max": owned, "ghosts_max": ghosts, "ghost_bytes_build_max": 80 * ghosts,
+                    "work_owned": float(owned), "work_ghost": float(ghosts), "total_weight": 4.0 * owned}
+        rows = [row(1000, 250, 100), row(8000, 2000, 400)]
+        self.assertAlmostEqual(D.fit_exponent(rows, "ghosts_max", 4), 2 / 3)
+        # P' = 4 x (8000 / 64000) < 2 for Hilbert: the thin-surface rule, ghosts ∝ N^(2/3) at P = 4
+        e = D.extrapolate(rows, 64000, 4, "hilbert")
+        self.assertTrue(e["extrapolated"])
+        self.assertAlmostEqual(e["ghosts_max"], 1600)
+        self.assertAlmostEqual(e["owned_max"], 16000)
+        self.assertAlmostEqual(e["work_ghost"], 1600)
+        # similar ranges: P = 64 at 8 x the particles has the shape of P' = 8 at 8 000 (Hilbert: C ∝ N / P)
+        rows += [dict(row(8000, 1000, 300), P=8), dict(row(8000, 500, 250), P=16)]
+        for r in rows[2:]:
+            r["total_weight"] = 4.0 * 2000
+        e = D.extrapolate(rows, 64000, 64, "hilbert")
+        self.assertAlmostEqual(e["similar_p"], 8)
+        share = 64000 / 64
+        self.assertAlmostEqual(e["ghosts_max"], 300 / (8000 / 8) * share)
+        self.assertAlmostEqual(e["work_ghost"] / (4.0 * 2000 * 8 / 64), 300 / (4.0 * 2000 / 8))
+        proj = D.project(rows[:2], [8000, 64000], [4], 1e-6)
+        self.assertEqual([p["extrapolated"] for p in proj], [False, True])
+        self.assertTrue(all(0 < p["efficiency"] < 1 for p in proj))
+
+
+@unittest.skipUnless(os.environ.get("SPHNL_BUILD_DIR") and shutil.which("mpirun"),
+                     "needs SPHNL_BUILD_DIR (make test sets it) and mpirun")
+class AgainstTheCode(unittest.TestCase):
+    def test_counts_of_three_real_ranks(self):
+        import pandas as pd
+        sphnl = str(Path(os.environ["SPHNL_BUILD_DIR"]) / "sphnl")
+        cmd = ["mpirun", "-np", "3", "--oversubscribe"] + (["--allow-run-as-root"] if os.getuid() == 0 else [])
+        env = {**os.environ, "OMPI_MCA_btl_vader_single_copy_mechanism": "none"}
+        for order in ("sort_x", "hilbert"):
+            with self.subTest(order=order), tempfile.TemporaryDirectory() as tmp:
+                # one CLL step from t = 0: the ghosts of its build are those of the t = 0 distribution
+                r = subprocess.run(cmd + [sphnl, "run", "--quiet", "--out", tmp, "--set", "particles=3000",
+                                          "--set", "steps=1", "--set", "output_interval=1", "--set", "progress=false",
+                                          "--set", f"cell_order={order}"],
+                                   capture_output=True, text=True, env=env, timeout=120)
+                self.assertEqual(r.returncode, 0, r.stderr)
+                s = json.loads((Path(tmp) / "summary.json").read_text())
+                df = pd.read_csv(Path(tmp) / s["snapshots"][0]["csv"])
+                c = D.decompose(df["x"].to_numpy(), df["y"].to_numpy(), df["z"].to_numpy(), df["type"].to_numpy(),
+                                s["h"], 2 * s["h"], [3], order=order)[3]
+                self.assertEqual({"min": int(c["ghosts"].min()), "max": int(c["ghosts"].max())}, s["ghosts_per_rank"])
+                self.assertEqual({"min": int(c["owned"].min()), "max": int(c["owned"].max())}, s["particles_per_rank"])
+                # nothing migrates at t = 0: the bytes of the step are the ghosts' 10 doubles each
+                self.assertEqual(s["bytes_sent_per_step"], c["ghosts"].sum() * D.GHOST_DOUBLES * 8)
+
+if __name__ == "__main__":
+    unittest.main()
