@@ -259,14 +259,21 @@ void Search::rows_into(Rows kind, std::span<std::int64_t> offsets, std::span<std
       count[j] = static_cast<std::int64_t>(row.size());
       continue;
     }
-    std::int64_t total = 0;
-    for (int t = 0; t < threads; ++t) {
+    std::int64_t total = static_cast<std::int64_t>(row.size());
+    if (half) {
+      total = 0;
+      for (const std::uint32_t i : row) total += i > j;
+    }
+    // The entries in every source range but the last; the last by difference.
+    std::int64_t before_last = 0;
+    for (int t = 0; t + 1 < threads; ++t) {
       const std::uint32_t lo = std::max(source_begin[t], half ? j + 1 : 0u), hi = source_begin[t + 1];
       std::int64_t c = 0;
       for (const std::uint32_t i : row) c += (i >= lo) & (i < hi);
       count[static_cast<std::size_t>(t) * n + j] = c;
-      total += c;
+      before_last += c;
     }
+    count[static_cast<std::size_t>(threads - 1) * n + j] = total - before_last;
     offsets[std::size_t{j} + 1] = total;
   }
   if (threads == 1 && !half)
