@@ -1,7 +1,9 @@
 // The `search` family: `sphnl neighbours` as a neighbour-search library, and
 // its peers. Full neighbour lists (every j != i with r < R, R = 2.6 spacings)
 // of a cloud of `particles` points (benchmarks/peers/clouds.hpp), built by sphnl's
-// engine or by a peer (impl), warm (buffers of the previous call reused) or as
+// engine (impl: sphnl), through the public API sphnl/search.hpp on the same
+// engine (impl: api, rows in input order and sorted; api_visit, rows handed
+// over in place), or by a peer (impl), warm (buffers of the previous call reused) or as
 // a first call (call: first; see run_first below). Before anything is timed,
 // every configuration's pair set is checked against the one sphnl's engine
 // finds on the same cloud (an order-independent checksum of the entries): a
@@ -19,6 +21,7 @@
 #include "peers/clouds.hpp"
 #include "sphnl/neighbours/neighbour_search.hpp"
 #include "sphnl/neighbours/pair_checksum.hpp"
+#include "sphnl/search.hpp"
 #include "sphnl/timer.hpp"
 #ifdef SPHNL_HAVE_NANOFLANN
 #include "peers/nanoflann_lists.hpp"
@@ -124,6 +127,64 @@ class SphnlRunner : public Runner {
   std::unique_ptr<NeighbourLists> lists_ = std::make_unique<NeighbourLists>();
 };
 
+/// The public API (sphnl/search.hpp) as a user calls it, on the same engine:
+/// Search::build, then the full rows either in input order and sorted
+/// (`api`: rows_into, into the caller's offsets and indices, allocated once
+/// and kept between warm calls) or handed over in place, row by row
+/// (`api_visit`: for_each_row; the caller only sums the row lengths). Beside
+/// impl:sphnl (the bare engine) this measures what the API adds.
+class ApiRunner : public Runner {
+ public:
+  ApiRunner(const SearchOptions& so, const peers::Cloud& cloud, bool visit) : cloud_(cloud), visit_(visit) {
+    options_.gridder = so.gridder;
+    options_.cell_order = so.order;
+    options_.reorder = so.reorder;
+    options_.threads = so.threads;
+  }
+  CallResult call(bool fresh) override {
+    if (fresh || !search_) {
+      search_ = std::make_unique<Search>(kRadius, options_);
+      offsets_ = std::vector<std::int64_t>();
+      indices_ = std::vector<std::uint32_t>();
+    }
+    Stopwatch sw;
+    search_->build(cloud_.x, cloud_.y, cloud_.z);
+    std::uint64_t entries = 0;
+    if (visit_) {
+      search_->for_each_row([&](std::uint32_t, std::span<const std::uint32_t> row) { entries += row.size(); });
+    } else {
+      offsets_.resize(search_->size() + 1);
+      indices_.resize(search_->num_entries(Rows::full));
+      search_->rows_into(Rows::full, offsets_, indices_);
+      entries = indices_.size();
+    }
+    CallResult r;
+    r.seconds = sw.lap();
+    r.entries = entries;
+    r.bytes = static_cast<double>(offsets_.capacity() * sizeof(std::int64_t) + indices_.capacity() * sizeof(std::uint32_t));
+    return r;
+  }
+  PairChecksum checksum() const override {
+    PairChecksum c;
+    if (visit_) {
+      search_->for_each_row([&](std::uint32_t i, std::span<const std::uint32_t> row) { c.add_row(i, row.data(), row.size()); });
+    } else {
+      for (std::size_t i = 0; i + 1 < offsets_.size(); ++i)
+        c.add_row(static_cast<std::uint32_t>(i), indices_.data() + offsets_[i],
+                  static_cast<std::size_t>(offsets_[i + 1] - offsets_[i]));
+    }
+    return c;
+  }
+
+ private:
+  Search::Options options_;
+  const peers::Cloud& cloud_;
+  bool visit_;
+  std::unique_ptr<Search> search_;
+  std::vector<std::int64_t> offsets_;
+  std::vector<std::uint32_t> indices_;
+};
+
 #ifdef SPHNL_HAVE_NANOFLANN
 class NanoflannRunner : public Runner {
  public:
@@ -151,6 +212,7 @@ class NanoflannRunner : public Runner {
 std::unique_ptr<Runner> make_runner(const std::string& impl, const SearchOptions& so, int threads,
                                     const peers::Cloud& cloud) {
   if (impl == "sphnl") return std::make_unique<SphnlRunner>(so, cloud);
+  if (impl == "api" || impl == "api_visit") return std::make_unique<ApiRunner>(so, cloud, impl == "api_visit");
 #ifdef SPHNL_HAVE_NANOFLANN
   if (impl == "nanoflann") return std::make_unique<NanoflannRunner>(threads, cloud);
 #else
@@ -159,7 +221,7 @@ std::unique_ptr<Runner> make_runner(const std::string& impl, const SearchOptions
     throw std::runtime_error("this sphnl_bench was built without nanoflann (install libnanoflann-dev and "
                              "reconfigure: CMake then builds the peer rows)");
 #endif
-  throw std::invalid_argument("impl: '" + impl + "'; allowed: sphnl, nanoflann");
+  throw std::invalid_argument("impl: '" + impl + "'; allowed: sphnl, api, api_visit, nanoflann");
 }
 
 }  // namespace

@@ -1,14 +1,16 @@
 // The public API (sphnl/search.hpp) against the brute-force oracle: full and
-// half rows in input order, for_each_pair, the cell-order permutation, update
+// half rows in input order, for_each_pair, for_each_row, the cell-order permutation, update
 // after a move, queries of a second point set, float and double input, and a
 // clear exception for every bad input.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
 #include <random>
 #include <stdexcept>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -85,6 +87,17 @@ void expect_search_matches(Search& s, const Columns& c, const PairSet& truth, co
   });
   std::sort(visited.begin(), visited.end());
   EXPECT_EQ(visited, truth) << what << ": for_each_pair";
+  // for_each_row: every point once, with row i of the full rows in some order
+  std::vector<int> seen(n, 0);
+  s.for_each_row([&](std::uint32_t i, std::span<const std::uint32_t> row) {
+    ASSERT_LT(i, n) << what;
+    ++seen[i];
+    std::vector<std::uint32_t> sorted(row.begin(), row.end());
+    std::sort(sorted.begin(), sorted.end());
+    const std::vector<std::uint32_t> want(full.indices.begin() + full.offsets[i], full.indices.begin() + full.offsets[i + 1]);
+    EXPECT_EQ(sorted, want) << what << ": for_each_row, point " << i;
+  });
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), static_cast<std::ptrdiff_t>(n)) << what << ": for_each_row visits each point once";
 }
 
 std::vector<Search::Options> all_options() {

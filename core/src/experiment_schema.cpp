@@ -72,7 +72,7 @@ const std::vector<Axis>& axes() {
       {"extra_loops", {"step", "counters"}, {}, {}},
       // the search family's peers and clouds (benchmarks/search_benchmark.cpp;
       // a sweep without them means sphnl, lattice, generated, warm)
-      {"impl", {"search"}, {}, one_of({"sphnl", "nanoflann"})},
+      {"impl", {"search"}, {}, one_of({"sphnl", "nanoflann", "api", "api_visit"})},
       {"cloud", {"search"}, {}, one_of({"lattice", "random"})},
       {"memory_order", {"search"}, {}, one_of({"generated", "shuffled"})},
       {"call", {"search"}, {}, one_of({"warm", "first"})},

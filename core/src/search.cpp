@@ -137,15 +137,6 @@ struct Search::Impl {
   void each_row(Rows kind, Fn fn) const {
     for (std::size_t r = 0; r < lists.num_rows(); ++r) fn(lists.point(r), lists.row(r), kind);
   }
-  /// each_row() split over the search's threads: fn must only write what
-  /// belongs to its own point (the rows of distinct points are independent).
-  template <class Fn>
-  void each_row_in_parallel(Rows kind, Fn fn) const {
-    if (options.threads <= 1) return each_row(kind, fn);
-    const std::ptrdiff_t rows = static_cast<std::ptrdiff_t>(lists.num_rows());
-#pragma omp parallel for num_threads(options.threads) schedule(static)
-    for (std::ptrdiff_t r = 0; r < rows; ++r) fn(lists.point(r), lists.row(r), kind);
-  }
 };
 
 Search::Search(double radius, const Options& options) {
@@ -221,53 +212,104 @@ void Search::rows_into(Rows kind, std::span<std::int64_t> offsets, std::span<std
   if (indices.size() != entries)
     fail("rows_into: indices has " + std::to_string(indices.size()) + " elements, needs num_entries() = " +
          std::to_string(entries));
-  // Count per input point and prefix-sum; then a transpose instead of a
-  // sort: the rows of i = 0, 1, 2, ... are read in input order and i is
-  // appended to the output row of each of its neighbours j. The lists are
-  // symmetric (i is in row j iff j is in row i), so output row j receives
-  // exactly its neighbours, in increasing order: no row needs sorting, and
-  // every entry is moved once (a sort of each row costs ~ log2(row) compares
-  // per entry, most of them mispredicted branches). A half row j keeps the
-  // i > j.
   offsets[0] = 0;
+  if (n == 0) return;
+  // A transpose instead of a sort: the engine's rows are read in input order
+  // (sources i = 0, 1, 2, ...) and i is appended to the output row of each of
+  // its neighbours j. The lists are symmetric (i is in row j iff j is in row
+  // i), so output row j receives exactly its neighbours, in increasing order:
+  // no row needs sorting, and every entry is moved once (a sort of each row
+  // costs ~ log2(row) compares per entry, most of them mispredicted
+  // branches). A half row j keeps the i > j.
+  //
+  // Threads split the sources into contiguous ranges: thread t writes the
+  // entries i of its range into every row they belong to, after those of
+  // the ranges before. Where they start in row j is known from row j itself
+  // (by symmetry, its entries in range t are what range t sends to it), so
+  // one counting pass over the rows (split by rows) gives every thread its
+  // own write positions, and then every entry is read and written once, by
+  // one thread.
+  const Impl& s = *impl_;
+  const NeighbourLists& lists = s.lists;
   const bool half = kind == Rows::half;
-  impl_->each_row_in_parallel(kind, [&](std::uint32_t i, std::span<const std::uint32_t> row, Rows) {
-    std::int64_t c = 0;
-    if (half)
-      for (std::uint32_t j : row) c += j > i;
-    else
-      c = static_cast<std::int64_t>(row.size());
-    offsets[std::size_t{i} + 1] = c;
-  });
-  for (std::size_t i = 0; i < n; ++i) offsets[i + 1] += offsets[i];
-  const NeighbourLists& lists = impl_->lists;
-  const std::vector<std::uint32_t>& point_of_row = impl_->cell_order;
-  std::vector<std::uint32_t> row_of(n);
-  for (std::size_t r = 0; r < n; ++r) row_of[point_of_row[r]] = static_cast<std::uint32_t>(r);
-  std::vector<std::int64_t> next(offsets.begin(), offsets.end() - 1);
-  std::uint32_t* const out = indices.data();
-  // Output rows [j_begin, j_end) only: with several threads each owns a range
-  // of output rows (of about equal entries) and reads every input row.
-  auto transpose = [&](std::uint32_t j_begin, std::uint32_t j_end) {
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::uint32_t self = static_cast<std::uint32_t>(i);
-      for (const std::uint32_t j : lists.row(row_of[i]))
-        if (j >= j_begin && j < j_end && (!half || self > j)) out[next[j]++] = self;
+  const int threads = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(s.options.threads), n));
+  const std::ptrdiff_t rows = static_cast<std::ptrdiff_t>(n);
+  // Source ranges of about equal entries (from the full row lengths).
+  std::vector<std::uint32_t> source_begin(static_cast<std::size_t>(threads) + 1, 0);
+  source_begin[threads] = static_cast<std::uint32_t>(n);
+  if (threads > 1) {
+    std::vector<std::uint64_t> full_before(n + 1, 0);
+    for (std::size_t r = 0; r < n; ++r) full_before[lists.point(r) + 1] = lists.row(r).size();
+    for (std::size_t i = 0; i < n; ++i) full_before[i + 1] += full_before[i];
+    for (int t = 1; t < threads; ++t) {
+      const std::uint64_t want = full_before[n] * static_cast<std::uint64_t>(t) / static_cast<std::uint64_t>(threads);
+      source_begin[t] = static_cast<std::uint32_t>(std::lower_bound(full_before.begin(), full_before.end() - 1, want) -
+                                                   full_before.begin());
     }
-  };
-  const int threads = impl_->options.threads;
-  if (threads <= 1 || n == 0) {
-    transpose(0, static_cast<std::uint32_t>(n));
-    return;
   }
-#pragma omp parallel num_threads(threads)
+  // next[t * n + j]: where range t writes its next entry of row j; first the
+  // count of row j's entries in range t, then (below) the position.
+  std::vector<std::int64_t> next(static_cast<std::size_t>(threads) * n);
+  std::int64_t* const count = next.data();
+#pragma omp parallel for num_threads(threads) schedule(static) if (threads > 1)
+  for (std::ptrdiff_t r = 0; r < rows; ++r) {
+    const std::uint32_t j = lists.point(static_cast<std::size_t>(r));
+    const std::span<const std::uint32_t> row = lists.row(static_cast<std::size_t>(r));
+    if (threads == 1 && !half) {
+      count[j] = static_cast<std::int64_t>(row.size());
+      continue;
+    }
+    std::int64_t total = static_cast<std::int64_t>(row.size());
+    if (half) {
+      total = 0;
+      for (const std::uint32_t i : row) total += i > j;
+    }
+    // The entries in every source range but the last; the last by difference.
+    std::int64_t before_last = 0;
+    for (int t = 0; t + 1 < threads; ++t) {
+      const std::uint32_t lo = std::max(source_begin[t], half ? j + 1 : 0u), hi = source_begin[t + 1];
+      std::int64_t c = 0;
+      for (const std::uint32_t i : row) c += (i >= lo) & (i < hi);
+      count[static_cast<std::size_t>(t) * n + j] = c;
+      before_last += c;
+    }
+    count[static_cast<std::size_t>(threads - 1) * n + j] = total - before_last;
+    offsets[std::size_t{j} + 1] = total;
+  }
+  if (threads == 1 && !half)
+    for (std::size_t j = 0; j < n; ++j) offsets[j + 1] = count[j];
+  for (std::size_t j = 0; j < n; ++j) offsets[j + 1] += offsets[j];
+#pragma omp parallel for num_threads(threads) schedule(static) if (threads > 1)
+  for (std::ptrdiff_t j = 0; j < rows; ++j) {
+    std::int64_t at = offsets[j];
+    for (int t = 0; t < threads; ++t) {
+      std::int64_t& slot = next[static_cast<std::size_t>(t) * n + static_cast<std::size_t>(j)];
+      const std::int64_t c = slot;
+      slot = at;
+      at += c;
+    }
+  }
+  // Input point -> engine row (the inverse of cell_order).
+  std::vector<std::uint32_t> row_of(n);
+  const std::vector<std::uint32_t>& point_of_row = s.cell_order;
+#pragma omp parallel for num_threads(threads) schedule(static) if (threads > 1)
+  for (std::ptrdiff_t r = 0; r < rows; ++r) row_of[point_of_row[r]] = static_cast<std::uint32_t>(r);
+  std::uint32_t* const out = indices.data();
+#pragma omp parallel num_threads(threads) if (threads > 1)
   {
-    const std::int64_t t = omp_get_thread_num(), team = omp_get_num_threads();
-    auto first_row = [&](std::int64_t k) {  // first output row of thread k
-      const std::int64_t want = offsets[n] * k / team;
-      return static_cast<std::uint32_t>(std::lower_bound(offsets.begin(), offsets.end() - 1, want) - offsets.begin());
-    };
-    transpose(first_row(t), t + 1 == team ? static_cast<std::uint32_t>(n) : first_row(t + 1));
+    const int team = omp_get_num_threads();
+    for (int t = omp_get_thread_num(); t < threads; t += team) {
+      std::int64_t* const at = next.data() + static_cast<std::size_t>(t) * n;
+      for (std::uint32_t i = source_begin[t]; i < source_begin[t + 1]; ++i) {
+        const std::span<const std::uint32_t> row = lists.row(row_of[i]);
+        if (half) {
+          for (const std::uint32_t j : row)
+            if (i > j) out[at[j]++] = i;
+        } else {
+          for (const std::uint32_t j : row) out[at[j]++] = i;
+        }
+      }
+    }
   }
 }
 
@@ -284,6 +326,13 @@ void Search::visit_pairs(PairVisitor visit, void* ctx) const {
   impl_->each_row(Rows::half, [&](std::uint32_t i, std::span<const std::uint32_t> row, Rows) {
     for (std::uint32_t j : row)
       if (j > i) visit(ctx, i, j);
+  });
+}
+
+void Search::visit_rows(RowVisitor visit, void* ctx) const {
+  if (!impl_->built) return;
+  impl_->each_row(Rows::full, [&](std::uint32_t i, std::span<const std::uint32_t> row, Rows) {
+    visit(ctx, i, row.data(), row.size());
   });
 }
 

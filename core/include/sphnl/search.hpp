@@ -111,6 +111,22 @@ class Search {
                 const_cast<void*>(static_cast<const void*>(&f)));
   }
 
+  /// Calls f(i, neighbours) once for every point i of the last build, with
+  /// neighbours a std::span<const std::uint32_t> of the input indices of all
+  /// its neighbours (as row i of rows(Rows::full), but in no particular
+  /// order), points in cell order. The spans are the search's own lists,
+  /// read in place (valid until the next build): no copy, no sort, so this
+  /// costs what the search costs, while rows() moves every entry once more
+  /// to put the rows in input order, sorted.
+  template <class F>
+  void for_each_row(F&& f) const {
+    visit_rows(
+        [](void* ctx, std::uint32_t i, const std::uint32_t* row, std::size_t count) {
+          (*static_cast<std::remove_reference_t<F>*>(ctx))(i, std::span<const std::uint32_t>(row, count));
+        },
+        const_cast<void*>(static_cast<const void*>(&f)));
+  }
+
   /// The cell-order permutation of the last build (as CompactNSearch's
   /// z_sort): the k-th point in cell order is input point cell_order()[k].
   /// Putting your arrays in this order (apply_cell_order) and building again
@@ -147,6 +163,8 @@ class Search {
  private:
   using PairVisitor = void (*)(void*, std::uint32_t, std::uint32_t);
   void visit_pairs(PairVisitor visit, void* ctx) const;
+  using RowVisitor = void (*)(void*, std::uint32_t, const std::uint32_t*, std::size_t);
+  void visit_rows(RowVisitor visit, void* ctx) const;
   void check_field_size(std::size_t src, std::size_t dst) const;
   struct Impl;
   std::unique_ptr<Impl> impl_;
