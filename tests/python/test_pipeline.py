@@ -31,7 +31,7 @@ class TinyPipeline(unittest.TestCase):
             self.assertEqual(run.returncode, 0, run.stdout[-2000:] + run.stderr[-2000:])
             # The ablations (figure null: `make ablations`, not make reproduce) into the same run.
             ablations = sorted(p.stem for p in (ROOT / "experiments").glob("*.json")
-                               if p.stem.startswith("ablation_") or p.stem == "beyond_loops")
+                               if p.stem.startswith("ablation_") or p.stem in ("beyond_loops", "beyond_thread_updates"))
             run = subprocess.run(
                 [PYTHON, "-m", "experiments.run", "--size", "tiny", "--run-id", "e2e", "--only", ",".join(ablations),
                  "--force-merge", "a second part of the same code (refused when the tree is dirty)",

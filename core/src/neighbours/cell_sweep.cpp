@@ -4,7 +4,8 @@
 
 namespace sphnl {
 
-void CellSweep::prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads, bool gather) {
+void CellSweep::prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads, bool gather,
+                        bool private_outputs) {
   if (static_cast<int>(scratch_.size()) < threads) scratch_.resize(threads);
   const std::size_t capacity = 14 * static_cast<std::size_t>(gridder.max_cell_count()) + kFilterSlack;
   const unsigned outputs = mask & (fields::force_out | fields::kgc_m_out);
@@ -16,7 +17,7 @@ void CellSweep::prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, 
     }
     if (gather) s.buffer.reserve(capacity);
     s.target = ParticleView::of(ps);
-    if (t > 0 && outputs) s.private_acc.attach(s.target, ps.size(), outputs);
+    if (t > 0 && outputs && private_outputs) s.private_acc.attach(s.target, ps.size(), outputs);
   }
 }
 
@@ -51,7 +52,7 @@ void CellSweep::reduce(ParticleSet& ps, unsigned outputs, int threads) {
 
 std::size_t CellSweep::bytes() const {
   // The thread split (thread_begin_, weight_) exists once, whatever the thread count.
-  std::size_t b = thread_begin_.capacity() * sizeof(std::uint32_t) + weight_.capacity() * sizeof(double);
+  std::size_t b = thread_begin_.capacity() * sizeof(std::uint32_t) + weight_.capacity() * sizeof(double) + phases_.bytes();
   for (const auto& s : scratch_)
     b += s.buffer.bytes() + (s.cell_index.capacity() + s.survivors.capacity() + s.fluid_slots.capacity()) * sizeof(std::uint32_t) +
          s.private_acc.bytes();
