@@ -18,6 +18,7 @@
 #include "support/dam_break.hpp"
 #include "support/oracle.hpp"
 #include "support/pair_recorder.hpp"
+#include "support/simulation_state.hpp"
 
 using namespace sphnl;
 using namespace sphnl::test;
@@ -59,42 +60,9 @@ std::size_t check_plan(const CellGrid& grid, const CellOrder& order, const Threa
 constexpr long kParticles = 2000;  // 344 fluid: 50 steps in a fraction of a second
 constexpr int kSteps = 50;
 
-struct State {
-  std::vector<double> x, z, vx, vz, rho;
-};
+using State = StateById;
 
-State run(const RunConfig& c) {
-  Simulation sim(c);
-  for (int s = 0; s < kSteps; ++s) sim.step();
-  const ParticleSet& ps = sim.particles();
-  State s;
-  for (auto* v : {&s.x, &s.z, &s.vx, &s.vz, &s.rho}) v->resize(ps.size());
-  for (std::size_t i = 0; i < ps.size(); ++i) {
-    const std::uint32_t id = ps.id[i];
-    s.x[id] = ps.x[i]; s.z[id] = ps.z[i];
-    s.vx[id] = ps.vx[i]; s.vz[id] = ps.vz[i];
-    s.rho[id] = ps.rho[i];
-  }
-  return s;
-}
-
-double max_diff(const std::vector<double>& a, const std::vector<double>& b) {
-  double d = 0;
-  for (std::size_t i = 0; i < a.size(); ++i) d = std::max(d, std::fabs(a[i] - b[i]));
-  return d;
-}
-
-/// The pairs (r < 2h) the simulation's pair source hands one recorder per thread, by id.
-PairSet pairs_of(Simulation& sim) {
-  std::vector<std::vector<std::array<double, 6>>> per_thread(static_cast<std::size_t>(sim.config().threads));
-  std::vector<PairRecorder> ops;
-  for (auto& r : per_thread) ops.push_back(PairRecorder{&r});
-  sim.build_neighbours();
-  sim.for_each_pair(ops);
-  std::vector<std::array<double, 6>> recorded;
-  for (const auto& r : per_thread) recorded.insert(recorded.end(), r.begin(), r.end());
-  return recorded_ids(sim.particles(), recorded);
-}
+State run(const RunConfig& c) { return state_after(c, kSteps); }
 
 struct Variant {
   std::string name;
@@ -154,17 +122,8 @@ TEST(ThreadPhases, NoCellWrittenByTwoThreadsInOnePhase) {
           const CellOrder::Coords c = CellOrder::unpack_coords(order->key_coords()[key]);
           if (c.z < 3 + (c.x * 7 + c.y * 3) % 3 && u(rng) < 0.9) weight[key] = 1 + std::floor(u(rng) * 40);
         }
-        // Thread ranges of equal weight, as CellSweep::split_keys cuts them.
-        double total = 0;
-        for (double w : weight) total += w;
-        std::vector<std::uint32_t> begin(threads + 1, num_keys);
-        begin[0] = 0;
-        double running = 0;
-        int t = 1;
-        for (std::uint32_t key = 0; key < num_keys && t < threads; ++key) {
-          running += weight[key];
-          while (t < threads && running >= total * t / threads) begin[t++] = key + 1;
-        }
+        std::vector<std::uint32_t> begin;
+        cut_key_ranges(weight, threads, begin);
         ThreadPhases phases;
         phases.plan(grid, *order, begin, weight, threads);
         const std::size_t serial = check_plan(grid, *order, phases, weight, threads, what);
@@ -199,18 +158,12 @@ TEST(ThreadUpdates, PhasedReachesThePrivateStateAfter50Steps) {
     c.thread_updates = ThreadUpdates::phased;
     const State s = run(c);
     if (c.threads == 1) {  // one thread: nothing to keep apart, the same sums
-      EXPECT_EQ(s.x, reference.x) << v.name;
-      EXPECT_EQ(s.vz, reference.vz) << v.name;
-      EXPECT_EQ(s.rho, reference.rho) << v.name;
+      expect_same_bits(s, reference, v.name);
       continue;
     }
     // Two threads: the same pairs, sums in another order (a particle's sum
     // is made by one thread instead of two partial sums added afterwards).
-    // The bounds of test_ablations.cpp's round-off comparisons; a wrong or a
-    // missing pair moves these fields by more than 1e-6 within a few steps.
-    EXPECT_LT(max_diff(s.x, reference.x), 1e-13) << v.name;
-    EXPECT_LT(max_diff(s.vz, reference.vz), 1e-12) << v.name;
-    EXPECT_LT(max_diff(s.rho, reference.rho), 1e-10) << v.name;
+    expect_roundoff_apart(s, reference, v.name);
     // and not by accident: the two runs did differ somewhere, or phased is private again
     EXPECT_TRUE(s.rho != reference.rho || s.vz != reference.vz) << v.name << ": bit-identical to private";
   }

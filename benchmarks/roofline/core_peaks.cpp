@@ -1,6 +1,5 @@
 #include "roofline/core_peaks.hpp"
 
-#include <immintrin.h>
 #include <time.h>
 
 #include <algorithm>
@@ -11,49 +10,24 @@ namespace sphnl::bench {
 
 namespace {
 
-// One vector type per precision at the widest width the build's -march allows,
-// with its multiply-add. Intrinsics rather than `a * b + c`, so that whether a
-// chain link is one fused instruction does not depend on -ffp-contract.
+// One vector type per precision at the widest width the build's -march
+// allows (GCC vector extensions). `acc * m + c` is one fused instruction where
+// the ISA has FMA: CMakeLists.txt compiles this file with -ffp-contract=fast,
+// so that does not depend on the compiler's default.
 #if defined(__AVX512F__)
-constexpr int kBits = 512;
-using VecD = __m512d;
-using VecF = __m512;
-inline VecD splat(double x) { return _mm512_set1_pd(x); }
-inline VecF splat(float x) { return _mm512_set1_ps(x); }
-inline VecD madd(VecD a, VecD b, VecD c) { return _mm512_fmadd_pd(a, b, c); }
-inline VecF madd(VecF a, VecF b, VecF c) { return _mm512_fmadd_ps(a, b, c); }
-constexpr bool kFused = true;
+constexpr int kBytes = 64;
 #elif defined(__AVX__)
-constexpr int kBits = 256;
-using VecD = __m256d;
-using VecF = __m256;
-inline VecD splat(double x) { return _mm256_set1_pd(x); }
-inline VecF splat(float x) { return _mm256_set1_ps(x); }
-#if defined(__FMA__)
-inline VecD madd(VecD a, VecD b, VecD c) { return _mm256_fmadd_pd(a, b, c); }
-inline VecF madd(VecF a, VecF b, VecF c) { return _mm256_fmadd_ps(a, b, c); }
+constexpr int kBytes = 32;
+#else
+constexpr int kBytes = 16;
+#endif
+#if defined(__FMA__) || defined(__AVX512F__)
 constexpr bool kFused = true;
 #else
-inline VecD madd(VecD a, VecD b, VecD c) { return _mm256_add_pd(_mm256_mul_pd(a, b), c); }
-inline VecF madd(VecF a, VecF b, VecF c) { return _mm256_add_ps(_mm256_mul_ps(a, b), c); }
 constexpr bool kFused = false;
 #endif
-#else
-constexpr int kBits = 128;
-using VecD = __m128d;
-using VecF = __m128;
-inline VecD splat(double x) { return _mm_set1_pd(x); }
-inline VecF splat(float x) { return _mm_set1_ps(x); }
-#if defined(__FMA__)
-inline VecD madd(VecD a, VecD b, VecD c) { return _mm_fmadd_pd(a, b, c); }
-inline VecF madd(VecF a, VecF b, VecF c) { return _mm_fmadd_ps(a, b, c); }
-constexpr bool kFused = true;
-#else
-inline VecD madd(VecD a, VecD b, VecD c) { return _mm_add_pd(_mm_mul_pd(a, b), c); }
-inline VecF madd(VecF a, VecF b, VecF c) { return _mm_add_ps(_mm_mul_ps(a, b), c); }
-constexpr bool kFused = false;
-#endif
-#endif
+using VecD = double __attribute__((vector_size(kBytes)));
+using VecF = float __attribute__((vector_size(kBytes)));
 
 // Independent chains: a chain link waits for the previous one (FMA latency
 // 4-5 cycles), so covering 2 FMA pipes needs at least 8-10 chains in flight.
@@ -62,17 +36,22 @@ constexpr int kChains = 12;
 
 /// acc <- acc * m + c on every chain; acc tends to its fixed point 1 (no
 /// overflow, no subnormals), and the result is kept alive through an asm.
-/// Every chain starts from its own value: chains that start equal compute the
-/// same thing, and the compiler merges them into one (it did, after inlining
-/// into sphnl_bench: one chain counted as twelve).
+/// The starting values and constants pass through an empty asm, so the
+/// compiler knows nothing of them: chains that start equal it merged into one
+/// (after inlining into sphnl_bench: one chain counted as twelve), and a chain
+/// that starts at the fixed point it folded away.
 template <class Vec, class T>
 double chains(std::int64_t rounds) {
   Vec acc[kChains];
-  for (int k = 0; k < kChains; ++k) acc[k] = splat(T(1) + T(k) * T(0.001));
-  const Vec m = splat(T(0.999999)), c = splat(T(0.000001));
+  for (int k = 0; k < kChains; ++k) {
+    acc[k] = Vec{} + (T(1) + T(k) * T(0.001));
+    asm volatile("" : "+x"(acc[k]));
+  }
+  Vec m = Vec{} + T(0.999999), c = Vec{} + T(0.000001);
+  asm volatile("" : "+x"(m), "+x"(c));
   for (std::int64_t r = 0; r < rounds; ++r) {
 #pragma GCC unroll 12
-    for (int k = 0; k < kChains; ++k) acc[k] = madd(acc[k], m, c);
+    for (int k = 0; k < kChains; ++k) acc[k] = acc[k] * m + c;
   }
   for (auto& a : acc) asm volatile("" : : "x"(a));
   constexpr int lanes = static_cast<int>(sizeof(Vec) / sizeof(T));
@@ -81,7 +60,7 @@ double chains(std::int64_t rounds) {
 
 }  // namespace
 
-int fma_vector_bits() { return kBits; }
+int fma_vector_bits() { return 8 * kBytes; }
 bool fma_fused() { return kFused; }
 
 double fma_flops_double(std::int64_t rounds) { return chains<VecD, double>(rounds); }

@@ -23,27 +23,21 @@ void CellSweep::prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, 
 
 void CellSweep::split_keys(const CellOrder& order, const Gridder& gridder, const ParticleSet& ps, int threads) {
   const std::uint32_t num_keys = order.num_keys();
-  thread_begin_.assign(static_cast<std::size_t>(threads) + 1, num_keys);
-  thread_begin_[0] = 0;
-  if (threads == 1) return;
+  if (threads == 1) {
+    thread_begin_.assign({0, num_keys});
+    return;
+  }
   // Work of a home cell ~ its fluid particles; boundary particles only meet
   // fluid ones, so they weigh a quarter. Weights are counted once per sweep.
   std::uint32_t* idx = scratch_[0].cell_index.data();
-  double total = 0;
   weight_.resize(num_keys);
   for (std::uint32_t key = 0; key < num_keys; ++key) {
     const std::uint32_t n = gridder.gather_cell(key, idx);
     double w = 0;
     for (std::uint32_t k = 0; k < n; ++k) w += ps.type[idx[k]] == ParticleType::fluid ? 1.0 : 0.25;
     weight_[key] = w;
-    total += w;
   }
-  double running = 0;
-  int t = 1;
-  for (std::uint32_t key = 0; key < num_keys && t < threads; ++key) {
-    running += weight_[key];
-    while (t < threads && running >= total * t / threads) thread_begin_[t++] = key + 1;
-  }
+  cut_key_ranges(weight_, threads, thread_begin_);
 }
 
 void CellSweep::reduce(ParticleSet& ps, unsigned outputs, int threads) {

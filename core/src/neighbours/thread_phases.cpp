@@ -10,6 +10,20 @@ namespace {
 constexpr std::uint8_t kExport = 1, kForeign = 2, kContested = 4, kSerial = 8;
 }  // namespace
 
+void cut_key_ranges(std::span<const double> weight, int threads, std::vector<std::uint32_t>& begin) {
+  const auto num_keys = static_cast<std::uint32_t>(weight.size());
+  begin.assign(static_cast<std::size_t>(threads) + 1, num_keys);
+  begin[0] = 0;
+  double total = 0;
+  for (double w : weight) total += w;
+  double running = 0;
+  int t = 1;
+  for (std::uint32_t key = 0; key < num_keys && t < threads; ++key) {
+    running += weight[key];
+    while (t < threads && running >= total * t / threads) begin[t++] = key + 1;
+  }
+}
+
 void ThreadPhases::plan(const CellGrid& grid, const CellOrder& order, std::span<const std::uint32_t> thread_begin,
                         std::span<const double> weight, int threads) {
   threads_ = threads;
@@ -21,43 +35,49 @@ void ThreadPhases::plan(const CellGrid& grid, const CellOrder& order, std::span<
   owner_.assign(num_keys, -1);
   state_.assign(num_keys, 0);
   stamp_.assign(num_keys, -1);
+  occupied_.clear();
   for (int t = 0; t < threads; ++t)
     for (std::uint32_t key = thread_begin[t]; key < thread_begin[t + 1]; ++key)
-      if (weight[key] > 0) owner_[key] = static_cast<std::int16_t>(t);
-
-  // The write set of home cell `key`: itself and its occupied forward cells.
-  auto write_set = [&](std::uint32_t key) {
-    writes_.clear();
+      if (weight[key] > 0) {
+        owner_[key] = static_cast<std::int16_t>(t);
+        occupied_.push_back(key);
+      }
+  // The write set of every occupied home cell, walked once: itself and its
+  // occupied forward cells. Exports, and the foreign cells they write.
+  write_begin_.resize(occupied_.size() + 1);
+  writes_.clear();
+  for (std::size_t o = 0; o < occupied_.size(); ++o) {
+    const std::uint32_t key = occupied_[o];
+    write_begin_[o] = static_cast<std::uint32_t>(writes_.size());
     writes_.push_back(key);
     for_each_stencil_cell(grid, order, CellOrder::unpack_coords(coords[key]), kHalfStencil,
                           [&](std::uint32_t k, double) {
-                            if (owner_[k] >= 0) writes_.push_back(k);
+                            if (owner_[k] < 0) return;
+                            writes_.push_back(k);
+                            if (owner_[k] != owner_[key]) {
+                              state_[key] |= kExport;
+                              state_[k] |= kForeign;
+                            }
                           });
-  };
-  // Exports, and the foreign cells they write.
-  for (std::uint32_t key = 0; key < num_keys; ++key) {
-    if (owner_[key] < 0) continue;
-    write_set(key);
-    for (std::uint32_t w : writes_)
-      if (owner_[w] != owner_[key]) {
-        state_[key] |= kExport;
-        state_[w] |= kForeign;
-      }
   }
+  write_begin_[occupied_.size()] = static_cast<std::uint32_t>(writes_.size());
+  auto writes_of = [&](std::size_t o) {
+    return std::span<const std::uint32_t>(writes_.data() + write_begin_[o], write_begin_[o + 1] - write_begin_[o]);
+  };
   // Phase 1 must hold no two exports of different threads writing one cell;
   // an export that would meet one goes to the serial list. Contested cells:
   // own-only cells that write a foreign cell.
   std::vector<double> contested(threads, 0.0);
-  for (std::uint32_t key = 0; key < num_keys; ++key) {
-    if (owner_[key] < 0) continue;
+  for (std::size_t o = 0; o < occupied_.size(); ++o) {
+    const std::uint32_t key = occupied_[o];
     const std::int16_t t = owner_[key];
-    write_set(key);
+    const auto w = writes_of(o);
     if (state_[key] & kExport) {
-      const bool clash = std::any_of(writes_.begin(), writes_.end(), [&](std::uint32_t w) { return stamp_[w] >= 0 && stamp_[w] != t; });
+      const bool clash = std::any_of(w.begin(), w.end(), [&](std::uint32_t c) { return stamp_[c] >= 0 && stamp_[c] != t; });
       if (clash) state_[key] |= kSerial;
       else
-        for (std::uint32_t w : writes_) stamp_[w] = t;
-    } else if (std::any_of(writes_.begin(), writes_.end(), [&](std::uint32_t w) { return (state_[w] & kForeign) != 0; })) {
+        for (std::uint32_t c : w) stamp_[c] = t;
+    } else if (std::any_of(w.begin(), w.end(), [&](std::uint32_t c) { return (state_[c] & kForeign) != 0; })) {
       state_[key] |= kContested;
       contested[t] += weight[key];
     }
@@ -67,8 +87,7 @@ void ThreadPhases::plan(const CellGrid& grid, const CellOrder& order, std::span<
   // nor contested, so it may run in either phase).
   const double phase2 = *std::max_element(contested.begin(), contested.end());
   std::vector<double> moved(threads, 0.0);
-  for (std::uint32_t key = 0; key < num_keys; ++key) {
-    if (owner_[key] < 0) continue;
+  for (const std::uint32_t key : occupied_) {
     const int t = owner_[key];
     const std::uint8_t s = state_[key];
     if (s & kSerial) {
@@ -87,8 +106,9 @@ void ThreadPhases::plan(const CellGrid& grid, const CellOrder& order, std::span<
 }
 
 std::size_t ThreadPhases::bytes() const {
-  std::size_t b = serial_.capacity() * sizeof(std::uint32_t) + owner_.capacity() * sizeof(std::int16_t) +
-                  state_.capacity() + stamp_.capacity() * sizeof(std::int16_t) + writes_.capacity() * sizeof(std::uint32_t);
+  std::size_t b = (serial_.capacity() + occupied_.capacity() + write_begin_.capacity() + writes_.capacity()) *
+                      sizeof(std::uint32_t) +
+                  (owner_.capacity() + stamp_.capacity()) * sizeof(std::int16_t) + state_.capacity();
   for (const auto& k : keys_) b += k.capacity() * sizeof(std::uint32_t);
   return b;
 }

@@ -108,7 +108,17 @@ void VerletList::plan_phases(const ParticleGrid& pg, int threads) {
     row += pg.gridder().gather_cell(key, idx.data());
   }
   key_row_[num_keys] = row;
-  phases_.plan(pg.grid(), pg.order(), sweep_.thread_begin(), sweep_.weights(), threads);
+  // The loop's work of a home cell: its list entries, plus one per row (a
+  // row is a filter call); > 0 exactly where the cell holds particles, which
+  // is what marks the cells a home cell writes. Threads take key ranges of
+  // equal work, as the private loop takes row ranges of equal entries.
+  loop_weight_.resize(num_keys);
+  for (std::uint32_t key = 0; key < num_keys; ++key) {
+    const std::uint32_t begin = key_row_[key], end = key_row_[key + 1];
+    loop_weight_[key] = static_cast<double>(end - begin) + static_cast<double>(offsets_[end] - offsets_[begin]);
+  }
+  cut_key_ranges(loop_weight_, threads, loop_begin_);
+  phases_.plan(pg.grid(), pg.order(), loop_begin_, loop_weight_, threads);
   auto add = [&](RowRanges& ranges, std::uint32_t key) {
     const std::uint32_t begin = key_row_[key], end = key_row_[key + 1];
     if (!ranges.empty() && ranges.back().second == begin) ranges.back().second = end;
@@ -161,7 +171,8 @@ std::size_t VerletList::list_bytes() const {
 
 std::size_t VerletList::bytes() const {
   std::size_t b = list_bytes() + sweep_.bytes() + visited_.capacity() + phases_.bytes() +
-                  (key_row_.capacity() + serial_rows_.capacity() * 2) * sizeof(std::uint32_t);
+                  (key_row_.capacity() + loop_begin_.capacity() + serial_rows_.capacity() * 2) * sizeof(std::uint32_t) +
+                  loop_weight_.capacity() * sizeof(double);
   for (const auto& r : phase_rows_) b += r.capacity() * 2 * sizeof(std::uint32_t);
   for (const auto& c : chunks_)
     b += (c.neighbours.data.capacity() + c.rows.capacity() + c.counts.capacity()) * sizeof(std::uint32_t);

@@ -108,12 +108,6 @@ class CellSweep {
           });
   }
 
-  /// The thread split of the last sweep: thread t swept keys
-  /// [thread_begin()[t], thread_begin()[t+1]); weights()[key] > 0 where the
-  /// cell holds particles (threads > 1 only).
-  std::span<const std::uint32_t> thread_begin() const { return thread_begin_; }
-  std::span<const double> weights() const { return weight_; }
-
   std::size_t bytes() const;
 
  private:

@@ -32,6 +32,11 @@
 
 namespace sphnl {
 
+/// Cuts the keys into `threads` contiguous ranges of about equal total
+/// weight: thread t gets [begin[t], begin[t+1]). The split of CellSweep (by
+/// fluid weight) and of a Verlet list's phased loop (by list entries).
+void cut_key_ranges(std::span<const double> weight, int threads, std::vector<std::uint32_t>& begin);
+
 class ThreadPhases {
  public:
   static constexpr int kParallelPhases = 2;
@@ -59,7 +64,9 @@ class ThreadPhases {
   std::vector<std::int16_t> owner_;   // per key: thread of the key range; -1 empty
   std::vector<std::uint8_t> state_;   // per key: kInterior, kExport, kSerial | kForeign | kContested
   std::vector<std::int16_t> stamp_;   // per key: the thread whose phase-1 export writes it; -1 none
-  std::vector<std::uint32_t> writes_;  // scratch: the write set of one home cell
+  std::vector<std::uint32_t> occupied_;      // occupied keys, in key order
+  std::vector<std::uint32_t> write_begin_;   // per occupied key: its write set in writes_
+  std::vector<std::uint32_t> writes_;        // the write sets, one after the other
 };
 
 }  // namespace sphnl

@@ -71,7 +71,7 @@ class VerletList {
   template <bool Simd, bool SkipBoundaryPairs>
   void build_sweep(const ParticleGrid& pg, ParticleSet& ps, double list_radius2, int threads);
   void prepare_loop(ParticleSet& ps, unsigned outputs, int threads, bool phased);
-  /// updates=phased: the rows of each thread's home cells per phase, from the build sweep's split.
+  /// updates=phased: the rows of each thread's home cells per phase (key ranges of equal list work).
   void plan_phases(const ParticleGrid& pg, int threads);
   void reduce(ParticleSet& ps, unsigned outputs, int threads);
 
@@ -108,6 +108,8 @@ class VerletList {
   std::vector<RowRanges> phase_rows_;
   RowRanges serial_rows_;
   std::vector<std::uint32_t> key_row_;  // per key: the first row of its home cell
+  std::vector<double> loop_weight_;      // per key: rows + list entries of its home cell
+  std::vector<std::uint32_t> loop_begin_;  // key ranges of the threads (equal loop_weight_)
   int phased_threads_ = 0;
 };
 
