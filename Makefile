@@ -4,7 +4,7 @@
 #   make test                      build and run every test (what CI runs)
 #   make reproduce [FULL=1] [MAX_N=n]  benchmarks -> results/<run-id>/ -> figures + REPRODUCTION.md
 #                  [FORCE_MERGE=reason]  add a part made by other code to an existing run (recorded)
-#   make ablations [FULL=1]        the ablation studies (experiments/ablation_*.json, beyond_loops)
+#   make ablations [FULL=1]        the ablation studies (experiments/ablation_*.json, beyond_loops, beyond_thread_updates)
 #   make figures RESULTS=dir       redraw figures and report from stored JSON only
 #   make bench ARGS="..."          run the benchmark binary with ARGS passed through
 #   make compare [BASE=ref] [THRESHOLD=2]   compare performance against another git ref
@@ -93,7 +93,7 @@ reproduce: build counters-build
 
 # The ablation studies (README.md, "Ablations"): not part of `make reproduce`
 # (its default size must stay within 25 min); run into the same folder.
-ABLATIONS := ablation_pair_loop,ablation_simd,ablation_boundary_pairs,ablation_gridder_a,ablation_initial_order,beyond_loops
+ABLATIONS := ablation_pair_loop,ablation_simd,ablation_boundary_pairs,ablation_gridder_a,ablation_initial_order,beyond_loops,beyond_thread_updates
 
 ablations: build
 	$(PYTHON) -m experiments.run --size $(SIZE) --run-id $(RUN_ID) --only $(ABLATIONS) --bench $(BUILD)/benchmarks/sphnl_bench $(if $(MAX_N),--max-n $(MAX_N)) $(if $(FORCE_MERGE),--force-merge "$(FORCE_MERGE)")

@@ -8,6 +8,8 @@
 
 #include "bench_common.hpp"
 #include "bench_guard.hpp"
+#include "roofline/core_peaks.hpp"
+#include "sphnl/pair_kernel_flops.hpp"
 
 namespace sphnl::bench {
 
@@ -21,11 +23,20 @@ namespace {
 const std::vector<std::string> kAxes = {"particles", "gridder", "cell_order", "reorder", "list", "list_steps",
                                         "kgc", "threads", "lattice", "h_coefficient", "flow_time",
                                         "pair_loop", "simd", "skip_boundary_pairs", "gridder_a_variant",
-                                        "initial_order", "extra_loops", "cache_model"};
+                                        "initial_order", "extra_loops", "thread_updates", "cache_model"};
+
+/// This core's double FMA peak (GFlop/s), measured once per process before its
+/// first window (docs/PERFORMANCE.md: the best of 3 trials of 20 ms).
+double core_fma_peak_gflops() {
+  static const double peak = measure_fma_peak_double_gflops();
+  return peak;
+}
 
 void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const std::vector<double>& flow_times,
-               int window, const std::string& cache_dir) {
+               int window, const std::string& cache_dir, bool roofline) {
   const long sequence = next_run_sequence();
+  // Before the windows: measured inside the first one, the peak would be timed with it.
+  const double peak = roofline ? core_fma_peak_gflops() : 0.0;
   const Simulation& start =
       developed_flow({cfg.particles, cfg.lattice, cfg.h_coefficient, flow_time}, flow_times, cache_dir);
   cfg.dx = start.case_info().dx;  // the same case, without searching dx again
@@ -59,6 +70,17 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
   c["candidates_per_particle"] = 2.0 * static_cast<double>(s.candidates) / steps / n;
   c["interactions_per_particle"] = 2.0 * static_cast<double>(s.interactions) / steps / n;
   c["pairs_per_s"] = static_cast<double>(s.interactions) / t.force;
+  // The force phase on the roofline (docs/PERFORMANCE.md): pairs x flops per
+  // pair as the kernels' source counts them, against threads x this core's
+  // FMA peak. Not in the counters family (time means nothing under valgrind).
+  const int flops_per_pair = force_phase_flops_per_pair(cfg.kgc, cfg.extra_loops);
+  c["flops_per_pair"] = flops_per_pair;
+  if (roofline) {
+    const double gflops = static_cast<double>(s.interactions) * flops_per_pair / t.force * 1e-9;
+    c["force_gflops"] = gflops;
+    c["fma_peak_gflops"] = peak;
+    c["force_peak_fraction"] = gflops / (peak * cfg.threads);
+  }
   c["vl_misses"] = static_cast<double>(s.vl_misses);
   c["extra_loop_passes"] = static_cast<double>(s.extra_loop_passes);
   c["list_bytes"] = static_cast<double>(s.max_list_bytes);
@@ -79,9 +101,10 @@ void register_step_benchmarks(const json& sweep, int window, const Options& opt,
     const RunConfig cfg = run_config_of(p);  // validates every value before anything runs
     const std::string name = benchmark_name(family, p, kAxes);
     const double flow_time = flow_time_of(p);
+    const bool roofline = family != "counters";
     benchmark::RegisterBenchmark(name.c_str(),
-                                 [cfg, flow_time, flow_times, window, cache = opt.cache_dir, name](benchmark::State& st) {
-                                   guarded(name, [&] { run_point(st, cfg, flow_time, flow_times, window, cache); });
+                                 [cfg, flow_time, flow_times, window, cache = opt.cache_dir, name, roofline](benchmark::State& st) {
+                                   guarded(name, [&] { run_point(st, cfg, flow_time, flow_times, window, cache, roofline); });
                                  })
         ->Unit(benchmark::kMillisecond);
   }

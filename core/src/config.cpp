@@ -20,6 +20,7 @@ constexpr std::array kPairLoopNames{"gather", "direct"};
 constexpr std::array kSlidingNames{"occupied", "shift_all"};
 constexpr std::array kInitialOrderNames{"generated", "shuffled"};
 constexpr std::array kOnOffNames{"on", "off"};
+constexpr std::array kThreadUpdateNames{"private", "phased"};
 
 template <class Names>
 std::string join(const Names& names) {
@@ -105,6 +106,8 @@ const std::vector<Key>& key_table() {
        [](const RunConfig& c) { return json(c.max_lost_fraction); }},
       {"threads", [](RunConfig& c, const json& v) { c.threads = static_cast<int>(get_integer("threads", v, 1, 1024)); },
        [](const RunConfig& c) { return json(c.threads); }},
+      {"thread_updates", [](RunConfig& c, const json& v) { c.thread_updates = get_enum<ThreadUpdates>("thread_updates", v, kThreadUpdateNames); },
+       [](const RunConfig& c) { return json(to_string(c.thread_updates)); }},
       {"progress", [](RunConfig& c, const json& v) { c.progress = get_bool("progress", v); },
        [](const RunConfig& c) { return json(c.progress); }},
       {"gridder", [](RunConfig& c, const json& v) { c.gridder = get_enum<GridderKind>("gridder", v, kGridderNames); },

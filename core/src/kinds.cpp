@@ -28,5 +28,9 @@ const char* to_string(InitialOrder o) {
   constexpr const char* names[] = {"generated", "shuffled"};
   return names[static_cast<int>(o)];
 }
+const char* to_string(ThreadUpdates u) {
+  constexpr const char* names[] = {"private", "phased"};
+  return names[static_cast<int>(u)];
+}
 
 }  // namespace sphnl

@@ -38,6 +38,7 @@ RebuildSettings rebuild_settings(const RunConfig& c) {
   r.threads = c.threads;
   r.build.simd = c.simd;
   r.build.skip_boundary_pairs = c.skip_boundary_pairs;
+  r.build.updates = c.thread_updates;
   return r;
 }
 
@@ -73,6 +74,7 @@ void Simulation::init(Communicator* comm) {
   pair_options_.loop = config_.pair_loop;
   pair_options_.simd = config_.simd;
   pair_options_.skip_boundary_pairs = config_.skip_boundary_pairs;
+  pair_options_.updates = config_.thread_updates;
   if (config_.initial_order == InitialOrder::shuffled) shuffle_memory_order();
   grid_ = make_particle_grid();
   force_ops_.assign(config_.threads, ForceOp<false>{&phys_, 0});

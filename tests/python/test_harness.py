@@ -169,8 +169,9 @@ class TestExperiments(unittest.TestCase):
             self.assertLessEqual(least, most)
         self.assertGreater(run.snapshot_seconds(chosen, "default", nothing), 60)
         # `make ablations` (not part of make reproduce) within the same limit
-        ablations = [e for i, e in self.exps.items() if i.startswith("ablation_") or i == "beyond_loops"]
-        self.assertEqual(len(ablations), 6)
+        ablations = [e for i, e in self.exps.items()
+                     if i.startswith("ablation_") or i in ("beyond_loops", "beyond_thread_updates")]
+        self.assertEqual(len(ablations), 7)
         self.assertTrue(all(e["figure"] is None for e in ablations), "ablations must stay out of make reproduce")
         for size, limit in (("tiny", 60), ("default", 25 * 60)):
             most = sum(run.most_seconds(e, size) for e in ablations) + run.snapshot_seconds(ablations, size, nothing)

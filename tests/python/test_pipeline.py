@@ -32,7 +32,8 @@ class TinyPipeline(unittest.TestCase):
             # The ablations (figure null: `make ablations`, not make reproduce) into the same
             # run, and search_api (figure null too): the API's rows pass the bench's pair check.
             ablations = sorted(p.stem for p in (ROOT / "experiments").glob("*.json")
-                               if p.stem.startswith("ablation_") or p.stem in ("beyond_loops", "search_api"))
+                               if p.stem.startswith("ablation_")
+                               or p.stem in ("beyond_loops", "beyond_thread_updates", "search_api"))
             run = subprocess.run(
                 [PYTHON, "-m", "experiments.run", "--size", "tiny", "--run-id", "e2e", "--only", ",".join(ablations),
                  "--force-merge", "a second part of the same code (refused when the tree is dirty)",

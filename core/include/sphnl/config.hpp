@@ -38,6 +38,9 @@ struct RunConfig {
   double max_lost_fraction = 0.1;  // stop when more than this fraction of the fluid has left
   // execution
   int threads = 1;
+  // threads > 1: private accumulator copies summed afterwards (`private`), or
+  // home cells in phases where no two threads write one particle (`phased`)
+  ThreadUpdates thread_updates = ThreadUpdates::private_accumulators;
   bool progress = true;
   // neighbour search
   GridderKind gridder = GridderKind::B;

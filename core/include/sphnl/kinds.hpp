@@ -27,11 +27,19 @@ enum class SlidingVariant : std::uint8_t { occupied, shift_all };
 /// generator made them (nearly cell-ordered), or shuffled with a fixed seed.
 enum class InitialOrder : std::uint8_t { generated, shuffled };
 
+/// How threads > 1 keep from adding to one particle at once in a pair pass
+/// (both particles of a pair are updated): `private_accumulators` (config
+/// value `private`): every thread but the first adds into its own zeroed copy
+/// of the accumulators, summed afterwards; `phased`: no copies, the home cells
+/// run in phases in which no two threads write one cell (ThreadPhases).
+enum class ThreadUpdates : std::uint8_t { private_accumulators, phased };
+
 const char* to_string(GridderKind g);
 const char* to_string(CellOrderKind o);
 const char* to_string(ListKind l);
 const char* to_string(PairLoopKind p);
 const char* to_string(SlidingVariant v);
 const char* to_string(InitialOrder o);
+const char* to_string(ThreadUpdates u);
 
 }  // namespace sphnl

@@ -4,7 +4,8 @@
 
 namespace sphnl {
 
-void CellSweep::prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads, bool gather) {
+void CellSweep::prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads, bool gather,
+                        bool private_outputs) {
   if (static_cast<int>(scratch_.size()) < threads) scratch_.resize(threads);
   const std::size_t capacity = 14 * static_cast<std::size_t>(gridder.max_cell_count()) + kFilterSlack;
   const unsigned outputs = mask & (fields::force_out | fields::kgc_m_out);
@@ -16,33 +17,27 @@ void CellSweep::prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, 
     }
     if (gather) s.buffer.reserve(capacity);
     s.target = ParticleView::of(ps);
-    if (t > 0 && outputs) s.private_acc.attach(s.target, ps.size(), outputs);
+    if (t > 0 && outputs && private_outputs) s.private_acc.attach(s.target, ps.size(), outputs);
   }
 }
 
 void CellSweep::split_keys(const CellOrder& order, const Gridder& gridder, const ParticleSet& ps, int threads) {
   const std::uint32_t num_keys = order.num_keys();
-  thread_begin_.assign(static_cast<std::size_t>(threads) + 1, num_keys);
-  thread_begin_[0] = 0;
-  if (threads == 1) return;
+  if (threads == 1) {
+    thread_begin_.assign({0, num_keys});
+    return;
+  }
   // Work of a home cell ~ its fluid particles; boundary particles only meet
   // fluid ones, so they weigh a quarter. Weights are counted once per sweep.
   std::uint32_t* idx = scratch_[0].cell_index.data();
-  double total = 0;
   weight_.resize(num_keys);
   for (std::uint32_t key = 0; key < num_keys; ++key) {
     const std::uint32_t n = gridder.gather_cell(key, idx);
     double w = 0;
     for (std::uint32_t k = 0; k < n; ++k) w += ps.type[idx[k]] == ParticleType::fluid ? 1.0 : 0.25;
     weight_[key] = w;
-    total += w;
   }
-  double running = 0;
-  int t = 1;
-  for (std::uint32_t key = 0; key < num_keys && t < threads; ++key) {
-    running += weight_[key];
-    while (t < threads && running >= total * t / threads) thread_begin_[t++] = key + 1;
-  }
+  cut_key_ranges(weight_, threads, thread_begin_);
 }
 
 void CellSweep::reduce(ParticleSet& ps, unsigned outputs, int threads) {
@@ -51,7 +46,7 @@ void CellSweep::reduce(ParticleSet& ps, unsigned outputs, int threads) {
 
 std::size_t CellSweep::bytes() const {
   // The thread split (thread_begin_, weight_) exists once, whatever the thread count.
-  std::size_t b = thread_begin_.capacity() * sizeof(std::uint32_t) + weight_.capacity() * sizeof(double);
+  std::size_t b = thread_begin_.capacity() * sizeof(std::uint32_t) + weight_.capacity() * sizeof(double) + phases_.bytes();
   for (const auto& s : scratch_)
     b += s.buffer.bytes() + (s.cell_index.capacity() + s.survivors.capacity() + s.fluid_slots.capacity()) * sizeof(std::uint32_t) +
          s.private_acc.bytes();

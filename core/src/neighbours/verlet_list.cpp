@@ -91,9 +91,52 @@ void VerletList::build(const ParticleGrid& pg, ParticleSet& ps, double list_radi
     }
   offsets_[n] = sum;
   max_count_ = longest;
+  phased_threads_ = 0;
+  if (options.updates == ThreadUpdates::phased && threads > 1) plan_phases(pg, threads);
 }
 
-void VerletList::prepare_loop(ParticleSet& ps, unsigned outputs, int threads) {
+void VerletList::plan_phases(const ParticleGrid& pg, int threads) {
+  // The build sweep visited the home cells in key order and gave every
+  // gridded particle one row, so the rows of cell `key` start at the count of
+  // the particles in the cells before it.
+  const std::uint32_t num_keys = pg.order().num_keys();
+  std::vector<std::uint32_t> idx(pg.gridder().max_cell_count());
+  key_row_.resize(static_cast<std::size_t>(num_keys) + 1);
+  std::uint32_t row = 0;
+  for (std::uint32_t key = 0; key < num_keys; ++key) {
+    key_row_[key] = row;
+    row += pg.gridder().gather_cell(key, idx.data());
+  }
+  key_row_[num_keys] = row;
+  // The loop's work of a home cell: its list entries, plus one per row (a
+  // row is a filter call); > 0 exactly where the cell holds particles, which
+  // is what marks the cells a home cell writes. Threads take key ranges of
+  // equal work, as the private loop takes row ranges of equal entries.
+  loop_weight_.resize(num_keys);
+  for (std::uint32_t key = 0; key < num_keys; ++key) {
+    const std::uint32_t begin = key_row_[key], end = key_row_[key + 1];
+    loop_weight_[key] = static_cast<double>(end - begin) + static_cast<double>(offsets_[end] - offsets_[begin]);
+  }
+  cut_key_ranges(loop_weight_, threads, loop_begin_);
+  phases_.plan(pg.grid(), pg.order(), loop_begin_, loop_weight_, threads);
+  auto add = [&](RowRanges& ranges, std::uint32_t key) {
+    const std::uint32_t begin = key_row_[key], end = key_row_[key + 1];
+    if (!ranges.empty() && ranges.back().second == begin) ranges.back().second = end;
+    else ranges.emplace_back(begin, end);
+  };
+  phase_rows_.resize(static_cast<std::size_t>(ThreadPhases::kParallelPhases * threads));
+  for (int p = 0; p < ThreadPhases::kParallelPhases; ++p)
+    for (int t = 0; t < threads; ++t) {
+      RowRanges& ranges = phase_rows_[static_cast<std::size_t>(p * threads + t)];
+      ranges.clear();
+      for (const std::uint32_t key : phases_.keys(p, t)) add(ranges, key);
+    }
+  serial_rows_.clear();
+  for (const std::uint32_t key : phases_.serial()) add(serial_rows_, key);
+  phased_threads_ = threads;
+}
+
+void VerletList::prepare_loop(ParticleSet& ps, unsigned outputs, int threads, bool phased) {
   if (static_cast<int>(scratch_.size()) < threads) scratch_.resize(threads);
   const std::uint32_t n = offsets_.empty() ? 0 : static_cast<std::uint32_t>(offsets_.size() - 1);
   if (n != ps.size()) throw std::logic_error("VerletList used before build() for the current particle set");
@@ -111,7 +154,7 @@ void VerletList::prepare_loop(ParticleSet& ps, unsigned outputs, int threads) {
     s.begin = split(t);
     s.end = split(t + 1);
     s.view = ParticleView::of(ps);
-    if (t > 0 && outputs) s.private_acc.attach(s.view, ps.size(), outputs);
+    if (t > 0 && outputs && !phased) s.private_acc.attach(s.view, ps.size(), outputs);
   }
 }
 
@@ -127,7 +170,10 @@ std::size_t VerletList::list_bytes() const {
 }
 
 std::size_t VerletList::bytes() const {
-  std::size_t b = list_bytes() + sweep_.bytes() + visited_.capacity();
+  std::size_t b = list_bytes() + sweep_.bytes() + visited_.capacity() + phases_.bytes() +
+                  (key_row_.capacity() + loop_begin_.capacity() + serial_rows_.capacity() * 2) * sizeof(std::uint32_t) +
+                  loop_weight_.capacity() * sizeof(double);
+  for (const auto& r : phase_rows_) b += r.capacity() * 2 * sizeof(std::uint32_t);
   for (const auto& c : chunks_)
     b += (c.neighbours.data.capacity() + c.rows.capacity() + c.counts.capacity()) * sizeof(std::uint32_t);
   for (const auto& s : scratch_) {

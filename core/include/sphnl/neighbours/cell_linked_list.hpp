@@ -27,14 +27,14 @@ class CellLinkedList {
     if (options.loop == PairLoopKind::direct) {
       if (options.skip_boundary_pairs)
         throw std::logic_error("skip_boundary_pairs needs the gather loop (pair_loop=gather)");
-      if (options.simd) direct<true>(pg, ps, ops, support2);
-      else direct<false>(pg, ps, ops, support2);
+      if (options.simd) direct<true>(pg, ps, ops, support2, options.updates);
+      else direct<false>(pg, ps, ops, support2, options.updates);
     } else if (options.skip_boundary_pairs) {
-      if (options.simd) gathered<true, true>(pg, ps, ops, support2);
-      else gathered<false, true>(pg, ps, ops, support2);
+      if (options.simd) gathered<true, true>(pg, ps, ops, support2, options.updates);
+      else gathered<false, true>(pg, ps, ops, support2, options.updates);
     } else {
-      if (options.simd) gathered<true, false>(pg, ps, ops, support2);
-      else gathered<false, false>(pg, ps, ops, support2);
+      if (options.simd) gathered<true, false>(pg, ps, ops, support2, options.updates);
+      else gathered<false, false>(pg, ps, ops, support2, options.updates);
     }
     PairCounts sum;
     for (const auto& c : counts_) sum += c;
@@ -45,7 +45,7 @@ class CellLinkedList {
 
  private:
   template <bool Simd, bool SkipBoundaryPairs, PairOperation Op>
-  void gathered(const ParticleGrid& pg, ParticleSet& ps, std::vector<Op>& ops, double support2) {
+  void gathered(const ParticleGrid& pg, ParticleSet& ps, std::vector<Op>& ops, double support2, ThreadUpdates updates) {
     sweep_.run(pg.grid(), pg.order(), pg.gridder(), ps, Op::kFields, static_cast<int>(ops.size()),
                [&](int t, CellSweep::Scratch& s, std::uint32_t n_home) {
                  const ParticleView v = s.buffer.view();
@@ -57,7 +57,8 @@ class CellLinkedList {
                    ops[t].interact(v, i, survivors, m);
                    c.interactions += static_cast<std::uint64_t>(m);
                  }
-               });
+               },
+               updates);
   }
 
   /// Candidates of one cell read in place: a contiguous index range (B and A
@@ -73,7 +74,7 @@ class CellLinkedList {
   }
 
   template <bool Simd, PairOperation Op>
-  void direct(const ParticleGrid& pg, ParticleSet& ps, std::vector<Op>& ops, double support2) {
+  void direct(const ParticleGrid& pg, ParticleSet& ps, std::vector<Op>& ops, double support2, ThreadUpdates updates) {
     sweep_.run_direct(pg.grid(), pg.order(), pg.gridder(), ps, Op::kFields, static_cast<int>(ops.size()),
                       [&](int t, CellSweep::Scratch& s, std::span<const std::uint32_t> home,
                           const CellSweep::ForwardCells& forward) {
@@ -92,7 +93,8 @@ class CellLinkedList {
                           c.candidates += tested;
                           c.interactions += static_cast<std::uint64_t>(m);
                         }
-                      });
+                      },
+                      updates);
   }
 
   CellSweep sweep_;

@@ -7,7 +7,9 @@
 // fluid (split_keys: a static split of the key range would hand one thread the
 // water and the other the empty upper half of the tank); each accumulates into
 // private arrays that are summed afterwards in a fixed order, so results are
-// deterministic for a fixed thread count.
+// deterministic for a fixed thread count. With `thread_updates=phased`
+// (ThreadPhases) there are no private arrays: the home cells run in phases in
+// which no two threads write one particle.
 // With a periodic y (CellGrid::period_y) the stencil wraps across the seam and
 // the gathered copies of the cells beyond it are shifted by the period, so the
 // distance filter and the pair kernel see the nearest image and stay unchanged.
@@ -25,6 +27,7 @@
 #include "sphnl/neighbours/pair_filter.hpp"
 #include "sphnl/neighbours/stencil.hpp"
 #include "sphnl/neighbours/thread_accumulators.hpp"
+#include "sphnl/neighbours/thread_phases.hpp"
 #include "sphnl/orderings/cell_order.hpp"
 #include "sphnl/particles.hpp"
 
@@ -45,11 +48,12 @@ class CellSweep {
 
   /// Runs `visit(thread, buffer, n_home)` for every non-empty home cell; the
   /// first n_home buffer entries are the home cell's particles.
+  /// `updates`: how threads > 1 keep from writing one particle at once.
   template <class Visit>
   void run(const CellGrid& grid, const CellOrder& order, const Gridder& gridder, ParticleSet& ps, unsigned mask,
-           int threads, Visit&& visit) {
+           int threads, Visit&& visit, ThreadUpdates updates = ThreadUpdates::private_accumulators) {
     const unsigned outputs = mask & (fields::force_out | fields::kgc_m_out);
-    sweep(order, gridder, ps, mask, threads, /*gather=*/true,
+    sweep(grid, order, gridder, ps, mask, threads, /*gather=*/true, updates,
           [&](int t, Scratch& s, std::uint32_t key, CellOrder::Coords home) {
             std::uint32_t* idx = s.cell_index.data();
             const std::uint32_t n_home = gridder.gather_cell(key, idx);
@@ -84,9 +88,10 @@ class CellSweep {
   /// periodic grid (no image shift without a copy).
   template <class Visit>
   void run_direct(const CellGrid& grid, const CellOrder& order, const Gridder& gridder, ParticleSet& ps,
-                  unsigned mask, int threads, Visit&& visit) {
+                  unsigned mask, int threads, Visit&& visit,
+                  ThreadUpdates updates = ThreadUpdates::private_accumulators) {
     if (grid.period_y > 0) throw std::logic_error("CellSweep::run_direct: a periodic grid needs the gather sweep");
-    sweep(order, gridder, ps, mask, threads, /*gather=*/false,
+    sweep(grid, order, gridder, ps, mask, threads, /*gather=*/false, updates,
           [&](int t, Scratch& s, std::uint32_t key, CellOrder::Coords home_coords) {
             std::uint32_t* idx = s.cell_index.data();  // gridder D writes its walks here
             const std::span<const std::uint32_t> home = gridder.cell_members(key, idx);
@@ -112,13 +117,31 @@ class CellSweep {
   };
   /// Prepares the threads' scratch, splits the keys between the threads,
   /// calls home(thread, scratch, key, coords) for every key of a real cell in
-  /// each thread's range, then sums the private accumulators.
+  /// each thread's range (phased: in the phases of ThreadPhases), then sums
+  /// the private accumulators (private only).
   template <class Home>
-  void sweep(const CellOrder& order, const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads, bool gather,
-             Home&& home) {
-    prepare(gridder, ps, mask, threads, gather);
+  void sweep(const CellGrid& grid, const CellOrder& order, const Gridder& gridder, ParticleSet& ps, unsigned mask,
+             int threads, bool gather, ThreadUpdates updates, Home&& home) {
+    const unsigned outputs = mask & (fields::force_out | fields::kgc_m_out);
+    const bool phased = updates == ThreadUpdates::phased && threads > 1 && outputs != 0;
+    prepare(gridder, ps, mask, threads, gather, /*private_outputs=*/!phased);
     split_keys(order, gridder, ps, threads);
     const std::uint64_t* coords = order.key_coords().data();
+    if (phased) {
+      phases_.plan(grid, order, thread_begin_, weight_, threads);
+#pragma omp parallel num_threads(threads)
+      {
+        const int t = omp_get_thread_num();
+        Scratch& s = scratch_[t];
+        for (int p = 0; p < ThreadPhases::kParallelPhases; ++p) {
+          for (const std::uint32_t key : phases_.keys(p, t)) home(t, s, key, CellOrder::unpack_coords(coords[key]));
+#pragma omp barrier
+        }
+        if (t == 0)
+          for (const std::uint32_t key : phases_.serial()) home(t, s, key, CellOrder::unpack_coords(coords[key]));
+      }
+      return;
+    }
 #pragma omp parallel num_threads(threads)
     {
       const int t = omp_get_thread_num();
@@ -128,17 +151,19 @@ class CellSweep {
         if (c != CellOrder::kNoCellCoords) home(t, s, key, CellOrder::unpack_coords(c));
       }
     }
-    const unsigned outputs = mask & (fields::force_out | fields::kgc_m_out);
     if (outputs) reduce(ps, outputs, threads);
   }
-  /// gather = false (run_direct): no CellBuffer is allocated.
-  void prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads, bool gather = true);
+  /// gather = false (run_direct): no CellBuffer is allocated. private_outputs:
+  /// threads > 0 write their outputs into private accumulators.
+  void prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads, bool gather,
+               bool private_outputs);
   /// Fills thread_begin_: thread t sweeps keys [thread_begin_[t], thread_begin_[t+1]).
   void split_keys(const CellOrder& order, const Gridder& gridder, const ParticleSet& ps, int threads);
   std::vector<std::uint32_t> thread_begin_;
   std::vector<double> weight_;
   void reduce(ParticleSet& ps, unsigned outputs, int threads);
   std::vector<Scratch> scratch_;
+  ThreadPhases phases_;
 };
 
 }  // namespace sphnl

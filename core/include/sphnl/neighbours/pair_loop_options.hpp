@@ -11,6 +11,7 @@ struct PairLoopOptions {
   PairLoopKind loop = PairLoopKind::gather;  // cell-linked list: gather buffers, or cells read in place
   bool simd = true;                          // false: the scalar distance filter
   bool skip_boundary_pairs = false;          // cell sweep (gather): no boundary-boundary candidate is tested
+  ThreadUpdates updates = ThreadUpdates::private_accumulators;  // threads > 1: private copies or phases
 };
 
 }  // namespace sphnl

@@ -17,6 +17,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "sphnl/neighbours/cell_sweep.hpp"
@@ -27,6 +28,7 @@
 #include "sphnl/neighbours/pair_operation.hpp"
 #include "sphnl/neighbours/particle_grid.hpp"
 #include "sphnl/neighbours/thread_accumulators.hpp"
+#include "sphnl/neighbours/thread_phases.hpp"
 #include "sphnl/neighbours/uninit_buffer.hpp"
 #include "sphnl/particle_view.hpp"
 
@@ -36,7 +38,8 @@ class VerletList {
  public:
   /// Builds the list from `pg`, gridded with cells of side >= sqrt(list_radius2):
   /// every pair (not boundary-boundary) with r^2 < list_radius2. `options`:
-  /// simd and skip_boundary_pairs of the build sweep's filter.
+  /// simd and skip_boundary_pairs of the build sweep's filter; updates =
+  /// phased (threads > 1) plans the loop's phases on the build's cells.
   void build(const ParticleGrid& pg, ParticleSet& ps, double list_radius2, int threads,
              const PairLoopOptions& options = {});
 
@@ -44,6 +47,9 @@ class VerletList {
   /// on the global particle arrays (once per pair). Threads take contiguous
   /// ranges of particles with equal shares of the list; threads > 0 accumulate
   /// privately and are summed in a fixed order (deterministic for a fixed count).
+  /// When the list was built with thread_updates=phased for this thread count,
+  /// the rows run instead in the phases of ThreadPhases planned on the build's
+  /// cells (a row's pairs lie in its home cell's write set), without copies.
   /// `simd` = false: the scalar distance filter (decided once per pass).
   template <PairOperation Op>
   PairCounts for_each_pair(ParticleSet& ps, std::vector<Op>& ops, double support2, bool simd = true) {
@@ -64,7 +70,9 @@ class VerletList {
   PairCounts loop(ParticleSet& ps, std::vector<Op>& ops, double support2);
   template <bool Simd, bool SkipBoundaryPairs>
   void build_sweep(const ParticleGrid& pg, ParticleSet& ps, double list_radius2, int threads);
-  void prepare_loop(ParticleSet& ps, unsigned outputs, int threads);
+  void prepare_loop(ParticleSet& ps, unsigned outputs, int threads, bool phased);
+  /// updates=phased: the rows of each thread's home cells per phase (key ranges of equal list work).
+  void plan_phases(const ParticleGrid& pg, int threads);
   void reduce(ParticleSet& ps, unsigned outputs, int threads);
 
   /// Indices appended row by row into an UninitBuffer.
@@ -93,13 +101,24 @@ class VerletList {
   };
   std::vector<Scratch> scratch_;
   std::vector<PairCounts> counts_;
+  // thread_updates=phased: row ranges [first, second) per phase and thread
+  // ([phase * threads + thread]), then the serial ones; planned for phased_threads_.
+  using RowRanges = std::vector<std::pair<std::uint32_t, std::uint32_t>>;
+  ThreadPhases phases_;
+  std::vector<RowRanges> phase_rows_;
+  RowRanges serial_rows_;
+  std::vector<std::uint32_t> key_row_;  // per key: the first row of its home cell
+  std::vector<double> loop_weight_;      // per key: rows + list entries of its home cell
+  std::vector<std::uint32_t> loop_begin_;  // key ranges of the threads (equal loop_weight_)
+  int phased_threads_ = 0;
 };
 
 template <bool Simd, PairOperation Op>
 PairCounts VerletList::loop(ParticleSet& ps, std::vector<Op>& ops, double support2) {
   const int threads = static_cast<int>(ops.size());
   constexpr unsigned outputs = Op::kFields & (fields::force_out | fields::kgc_m_out);
-  prepare_loop(ps, outputs, threads);
+  const bool phased = outputs != 0 && threads > 1 && phased_threads_ == threads;
+  prepare_loop(ps, outputs, threads, phased);
   counts_.assign(threads, PairCounts{});
 #pragma omp parallel num_threads(threads)
   {
@@ -109,18 +128,30 @@ PairCounts VerletList::loop(ParticleSet& ps, std::vector<Op>& ops, double suppor
     PairCounts c;
     const std::uint32_t* off = offsets_.data();
     const std::uint32_t* nb = neighbours_.data.data();
-    for (std::uint32_t r = s.begin; r < s.end; ++r) {
-      const int n = static_cast<int>(off[r + 1] - off[r]);
-      if (n == 0) continue;
-      const std::uint32_t i = visit_[r];
-      const int m = filter_list<Simd>(s.view, i, nb + off[r], n, support2, survivors);
-      if (m > 0) ops[t].interact(s.view, i, survivors, m);
-      c.candidates += static_cast<std::uint64_t>(n);
-      c.interactions += static_cast<std::uint64_t>(m);
+    auto rows = [&](std::uint32_t begin, std::uint32_t end) {
+      for (std::uint32_t r = begin; r < end; ++r) {
+        const int n = static_cast<int>(off[r + 1] - off[r]);
+        if (n == 0) continue;
+        const std::uint32_t i = visit_[r];
+        const int m = filter_list<Simd>(s.view, i, nb + off[r], n, support2, survivors);
+        if (m > 0) ops[t].interact(s.view, i, survivors, m);
+        c.candidates += static_cast<std::uint64_t>(n);
+        c.interactions += static_cast<std::uint64_t>(m);
+      }
+    };
+    if (phased) {
+      for (int p = 0; p < ThreadPhases::kParallelPhases; ++p) {
+        for (const auto& [begin, end] : phase_rows_[static_cast<std::size_t>(p * threads + t)]) rows(begin, end);
+#pragma omp barrier
+      }
+      if (t == 0)
+        for (const auto& [begin, end] : serial_rows_) rows(begin, end);
+    } else {
+      rows(s.begin, s.end);
     }
     counts_[t] = c;
   }
-  if (outputs && threads > 1) reduce(ps, outputs, threads);
+  if (outputs && threads > 1 && !phased) reduce(ps, outputs, threads);
   PairCounts sum;
   for (const auto& c : counts_) sum += c;
   return sum;

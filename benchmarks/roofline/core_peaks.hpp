@@ -1,0 +1,58 @@
+#pragma once
+// The limits of one core of this machine, measured (docs/PERFORMANCE.md): the
+// floating-point peak (independent FMA chains at the vector width of the
+// build's -march) and the memory bandwidth (a STREAM-like triad over arrays
+// far larger than the last-level cache). Used by the roofline micro-benchmark
+// (sphnl_roofline) and, for the FMA peak, by the step family's counters.
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace sphnl::bench {
+
+/// Bits of the vectors the FMA kernels use: 512 with AVX-512, 256 with AVX,
+/// else 128 (SSE2); the build's -march decides, as it does for the solver.
+int fma_vector_bits();
+/// Whether the kernels issue fused multiply-adds (-march with FMA); without,
+/// a multiply and an add per chain link (still 2 flops).
+bool fma_fused();
+
+/// Runs `rounds` rounds of the double-precision kernel: every round one FMA on
+/// each of the independent chains (enough to cover the FMA latency on every
+/// FMA pipe). Returns the flops done (an FMA counts 2 per lane).
+double fma_flops_double(std::int64_t rounds);
+/// The same in single precision (twice the lanes).
+double fma_flops_float(std::int64_t rounds);
+
+/// a[i] = b[i] + s c[i] over three arrays of `elements` doubles (STREAM's
+/// triad). The arrays are allocated and touched once at construction.
+class Triad {
+ public:
+  explicit Triad(std::size_t elements);
+  /// One pass; returns the bytes STREAM counts for it (24 per element: two
+  /// reads and one write; the write-allocate read of a[] is not counted).
+  double run();
+  std::size_t elements() const { return a_.size(); }
+
+ private:
+  std::vector<double> a_, b_, c_;
+  double s_ = 0.5;
+};
+
+/// Bytes of the last-level cache of cpu0 (sysfs), or 32 MiB when unreadable.
+std::size_t last_level_cache_bytes();
+/// Elements per triad array: 4x the last-level cache each, so that no pass
+/// finds its data in any cache.
+std::size_t triad_elements();
+
+/// CPU seconds of the calling thread (CLOCK_THREAD_CPUTIME_ID): time the
+/// thread ran, without the time a shared machine gave its core to others.
+double thread_cpu_seconds();
+
+/// The best of `trials` runs of about `seconds` of thread CPU time each of the
+/// double FMA kernel on the calling thread, in GFlop/s per CPU second: what
+/// the core does while it runs this thread (the least disturbed trial is the
+/// closest to it: caches and the clock shared with other work only slow it).
+double measure_fma_peak_double_gflops(int trials = 3, double seconds = 0.02);
+
+}  // namespace sphnl::bench
