@@ -5,7 +5,18 @@
 // tests/mpi/test_mpi_ranks.cpp runs the same scenarios as MPI processes.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
+#include <map>
+#include <random>
+#include <vector>
+
+#include "sphnl/neighbours/cell_linked_list.hpp"
+#include "sphnl/neighbours/verlet_list.hpp"
+#include "support/clouds.hpp"
 #include "support/distributed_runs.hpp"
+#include "support/oracle.hpp"
+#include "support/pair_recorder.hpp"
 #include "support/periodic_slab.hpp"
 
 namespace sphnl::test {
@@ -145,6 +156,74 @@ TEST(Distributed, PeriodicSlabMatchesSerial) {
     SCOPED_TRACE(to_string(order));
     expect_ranks_match_serial(sc, {3});
   }
+}
+
+TEST(Distributed, NoPairOfTwoGhostsIsEvaluated) {
+  // One rank's particles: [0, owned) its own (x < 0.5), the rest ghosts. Every
+  // pass over the pairs (CLL gathered and in place, a Verlet list's build and
+  // loop) finds every pair with an owned particle once and only real pairs;
+  // a pair of two ghosts only where one of them shares a cell with an owned
+  // particle (a cell of another rank holds ghosts only; this cloud's cut
+  // need not fall on a cell face).
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<std::array<double, 3>> pts(3000);
+  for (auto& p : pts) p = {u(rng), u(rng), u(rng)};
+  const auto owned_end = std::stable_partition(pts.begin(), pts.end(), [](const auto& p) { return p[0] < 0.5; });
+  const std::uint32_t owned = static_cast<std::uint32_t>(owned_end - pts.begin());
+  const double radius = 0.1, support2 = radius * radius;
+  const ParticleSet base = cloud_from(pts);  // id = index: ghosts are the ids >= owned
+  const PairSet truth = brute_force_pairs(base, support2);
+  PairSet with_owned;
+  std::size_t ghost_ghost_truth = 0;
+  for (const auto& pr : truth) {
+    if (pr.first < owned) with_owned.push_back(pr);  // first is the smaller id
+    else ++ghost_ghost_truth;
+  }
+  ASSERT_GT(ghost_ghost_truth, 5000u);
+  enum class Pass { cll_gather, cll_direct, verlet };
+  for (const Pass pass : {Pass::cll_gather, Pass::cll_direct, Pass::verlet})
+    for (const bool reorder : {false, true}) {
+      SCOPED_TRACE("pass " + std::to_string(static_cast<int>(pass)) + ", reorder " + std::to_string(reorder));
+      ParticleSet ps = base;
+      ParticleGrid pg(bounds_of(ps, 0.01), CellOrderKind::sort_x, GridderKind::B, GridderOptions{});
+      pg.build(ps, radius, reorder, owned);
+      ASSERT_EQ(pg.ghost_begin(), owned);
+      // cells holding both owned particles and ghosts, by key
+      std::map<std::uint32_t, std::array<int, 2>> members;  // key -> {owned, ghosts}
+      std::vector<std::uint32_t> key_of_id(ps.size());
+      for (std::size_t i = 0; i < ps.size(); ++i) {
+        key_of_id[ps.id[i]] = pg.cell_keys()[i];
+        ++members[pg.cell_keys()[i]][ps.id[i] < owned ? 0 : 1];
+      }
+      std::vector<std::array<double, 6>> recorded;
+      std::vector<PairRecorder> ops(1);
+      ops[0].out = &recorded;
+      if (pass == Pass::verlet) {
+        VerletList list;
+        list.build(pg, ps, support2, 1);
+        list.for_each_pair(ps, ops, support2);
+      } else {
+        CellLinkedList cll;
+        PairLoopOptions options;
+        options.loop = pass == Pass::cll_gather ? PairLoopKind::gather : PairLoopKind::direct;
+        cll.for_each_pair(pg, ps, ops, support2, options);
+      }
+      const PairSet found = recorded_ids(ps, recorded);
+      EXPECT_EQ(std::adjacent_find(found.begin(), found.end()), found.end()) << "a pair was evaluated twice";
+      EXPECT_TRUE(std::includes(truth.begin(), truth.end(), found.begin(), found.end())) << "a pair that is none";
+      EXPECT_TRUE(std::includes(found.begin(), found.end(), with_owned.begin(), with_owned.end()))
+          << "a pair with an owned particle is missing";
+      std::size_t ghost_ghost = 0, in_ghost_cells = 0;
+      for (const auto& [a, b] : found) {
+        if (a < owned) continue;
+        ++ghost_ghost;
+        const bool mixed = members[key_of_id[a]][0] > 0 || members[key_of_id[b]][0] > 0;
+        in_ghost_cells += !mixed;
+      }
+      EXPECT_EQ(in_ghost_cells, 0u) << "pairs of two ghosts in cells of ghosts only";
+      EXPECT_LT(ghost_ghost, ghost_ghost_truth / 4) << "whole cells of ghosts must be skipped";
+    }
 }
 
 TEST(Distributed, MoreRanksThanCellsIsAClearError) {

@@ -12,6 +12,7 @@ bool ParticleGrid::build(ParticleSet& ps, double cell_size, bool reorder, std::s
   request.box = domain_;
   request.min_side = cell_size;
   request.period_y = period_y_;
+  ghost_begin_ = owned < ps.size() ? static_cast<std::uint32_t>(owned) : ~std::uint32_t{0};
   fit_grid(request, grid_, *order_);
   sort_.place(grid_, *order_, *gridder_, ps.x, ps.y, ps.z, ps.type.data());
   if (!reorder) return false;

@@ -24,7 +24,7 @@ void VerletList::build_sweep(const ParticleGrid& pg, ParticleSet& ps, double lis
                const ParticleView v = s.buffer.view();
                const std::uint32_t total = s.buffer.size();
                const std::uint32_t* global = s.buffer.index();
-               HomeCandidates<Simd, SkipBoundaryPairs> home(v, total, s.fluid_slots);
+               HomeCandidates<Simd, SkipBoundaryPairs> home(v, total, s.fluid_slots, s.first_partner);
                std::uint64_t tested = 0;
                for (std::uint32_t i = 0; i < n_home; ++i) {
                  std::uint32_t* out = c.neighbours.room(total - i - 1 + kFilterSlack);
@@ -34,7 +34,8 @@ void VerletList::build_sweep(const ParticleGrid& pg, ParticleSet& ps, double lis
                  c.rows.push_back(global[i]);
                  c.counts.push_back(static_cast<std::uint32_t>(m));
                }
-             });
+             },
+             ThreadUpdates::private_accumulators, pg.ghost_begin());
 }
 
 void VerletList::build(const ParticleGrid& pg, ParticleSet& ps, double list_radius2, int threads,

@@ -49,7 +49,7 @@ class CellLinkedList {
     sweep_.run(pg.grid(), pg.order(), pg.gridder(), ps, Op::kFields, static_cast<int>(ops.size()),
                [&](int t, CellSweep::Scratch& s, std::uint32_t n_home) {
                  const ParticleView v = s.buffer.view();
-                 HomeCandidates<Simd, SkipBoundaryPairs> home(v, s.buffer.size(), s.fluid_slots);
+                 HomeCandidates<Simd, SkipBoundaryPairs> home(v, s.buffer.size(), s.fluid_slots, s.first_partner);
                  std::uint32_t* survivors = s.survivors.data();
                  PairCounts& c = counts_[t];
                  for (std::uint32_t i = 0; i < n_home; ++i) {
@@ -58,7 +58,7 @@ class CellLinkedList {
                    c.interactions += static_cast<std::uint64_t>(m);
                  }
                },
-               updates);
+               updates, pg.ghost_begin());
   }
 
   /// Candidates of one cell read in place: a contiguous index range (B and A
@@ -81,10 +81,11 @@ class CellLinkedList {
                         const ParticleView& v = s.target;
                         std::uint32_t* survivors = s.survivors.data();
                         PairCounts& c = counts_[t];
+                        const bool home_pairs = s.first_partner == 0;  // not in a ghost home cell
                         for (std::size_t a = 0; a < home.size(); ++a) {
                           const std::uint32_t i = home[a];
-                          int m = filter_cell<Simd>(v, i, home.subspan(a + 1), support2, survivors);
-                          std::uint64_t tested = home.size() - a - 1;
+                          int m = home_pairs ? filter_cell<Simd>(v, i, home.subspan(a + 1), support2, survivors) : 0;
+                          std::uint64_t tested = home_pairs ? home.size() - a - 1 : 0;
                           for (int k = 0; k < forward.count; ++k) {
                             m += filter_cell<Simd>(v, i, forward.cells[k], support2, survivors + m);
                             tested += forward.cells[k].size();
@@ -94,7 +95,7 @@ class CellLinkedList {
                           c.interactions += static_cast<std::uint64_t>(m);
                         }
                       },
-                      updates);
+                      updates, pg.ghost_begin());
   }
 
   CellSweep sweep_;

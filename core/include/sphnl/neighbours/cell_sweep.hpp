@@ -13,6 +13,12 @@
 // With a periodic y (CellGrid::period_y) the stencil wraps across the seam and
 // the gathered copies of the cells beyond it are shifted by the period, so the
 // distance filter and the pair kernel see the nearest image and stay unchanged.
+// In a distributed run (`ghost_begin`: particles from there on are ghosts,
+// whole cells of other ranks) a pair of two ghosts is never visited: a ghost
+// home cell is swept with its owned forward cells only and its particles are
+// not paired with each other. Such a pair is evaluated by the rank that owns
+// one of them, and no rank integrates a ghost (docs/DESIGN.md, "The parallel
+// layer").
 #include <omp.h>
 
 #include <array>
@@ -44,28 +50,41 @@ class CellSweep {
     std::vector<std::uint32_t> fluid_slots;  // skip_boundary_pairs: fluid entries of the buffer
     ThreadAccumulators private_acc;  // threads > 0
     ParticleView target;
+    /// First buffer entry a home particle is paired with beyond its own
+    /// cell's later entries: 0, or n_home for a ghost home cell (its
+    /// particles are ghosts: not paired with each other).
+    std::uint32_t first_partner = 0;
   };
+
+  /// ghost_begin of a run without ghosts.
+  static constexpr std::uint32_t kNoGhosts = ~std::uint32_t{0};
 
   /// Runs `visit(thread, buffer, n_home)` for every non-empty home cell; the
   /// first n_home buffer entries are the home cell's particles.
   /// `updates`: how threads > 1 keep from writing one particle at once.
+  /// `ghost_begin`: the first ghost particle (ParticleGrid::ghost_begin).
   template <class Visit>
   void run(const CellGrid& grid, const CellOrder& order, const Gridder& gridder, ParticleSet& ps, unsigned mask,
-           int threads, Visit&& visit, ThreadUpdates updates = ThreadUpdates::private_accumulators) {
+           int threads, Visit&& visit, ThreadUpdates updates = ThreadUpdates::private_accumulators,
+           std::uint32_t ghost_begin = kNoGhosts) {
     const unsigned outputs = mask & (fields::force_out | fields::kgc_m_out);
     sweep(grid, order, gridder, ps, mask, threads, /*gather=*/true, updates,
           [&](int t, Scratch& s, std::uint32_t key, CellOrder::Coords home) {
             std::uint32_t* idx = s.cell_index.data();
             const std::uint32_t n_home = gridder.gather_cell(key, idx);
             if (n_home == 0) return;
+            const bool ghost_home = ghost_begin != kNoGhosts && all_ghosts(idx, n_home, ghost_begin);
             std::uint32_t total = n_home;
             int n_seam = 0;  // neighbour cells across a periodic seam: gathered range and y shift
             std::array<SeamCell, kHalfStencil.size()> seam;
             for_each_stencil_cell(grid, order, home, kHalfStencil, [&](std::uint32_t k, double shift) {
               const std::uint32_t begin = total;
               total += gridder.gather_cell(k, idx + total);
+              if (ghost_home && all_ghosts(idx + begin, total - begin, ghost_begin)) total = begin;
               if (shift != 0 && total > begin) seam[n_seam++] = {begin, total, shift};
             });
+            if (ghost_home && total == n_home) return;  // nothing but ghosts around
+            s.first_partner = ghost_home ? n_home : 0;
             s.buffer.gather(ps, idx, total, mask);
             for (int k = 0; k < n_seam; ++k) s.buffer.shift_y(seam[k].begin, seam[k].end, seam[k].shift);
             visit(t, s, n_home);
@@ -86,24 +105,31 @@ class CellSweep {
   /// particle arrays in place, as the paper's code did. scratch.target views
   /// the particles, its accumulators private for threads > 0. Not for a
   /// periodic grid (no image shift without a copy).
+  /// A ghost home cell (see run) comes with its owned forward cells only and
+  /// scratch.first_partner > 0: the visitor skips the pairs inside it.
   template <class Visit>
   void run_direct(const CellGrid& grid, const CellOrder& order, const Gridder& gridder, ParticleSet& ps,
                   unsigned mask, int threads, Visit&& visit,
-                  ThreadUpdates updates = ThreadUpdates::private_accumulators) {
+                  ThreadUpdates updates = ThreadUpdates::private_accumulators, std::uint32_t ghost_begin = kNoGhosts) {
     if (grid.period_y > 0) throw std::logic_error("CellSweep::run_direct: a periodic grid needs the gather sweep");
     sweep(grid, order, gridder, ps, mask, threads, /*gather=*/false, updates,
           [&](int t, Scratch& s, std::uint32_t key, CellOrder::Coords home_coords) {
             std::uint32_t* idx = s.cell_index.data();  // gridder D writes its walks here
             const std::span<const std::uint32_t> home = gridder.cell_members(key, idx);
             if (home.empty()) return;
+            const bool ghost_home =
+                ghost_begin != kNoGhosts && all_ghosts(home.data(), static_cast<std::uint32_t>(home.size()), ghost_begin);
             std::uint32_t used = home.data() == idx ? static_cast<std::uint32_t>(home.size()) : 0;
             ForwardCells forward;
             for_each_stencil_cell(grid, order, home_coords, kHalfStencil, [&](std::uint32_t k, double) {
               const std::span<const std::uint32_t> cell = gridder.cell_members(k, idx + used);
               if (cell.empty()) return;
+              if (ghost_home && all_ghosts(cell.data(), static_cast<std::uint32_t>(cell.size()), ghost_begin)) return;
               if (cell.data() == idx + used) used += static_cast<std::uint32_t>(cell.size());
               forward.cells[forward.count++] = cell;
             });
+            if (ghost_home && forward.count == 0) return;
+            s.first_partner = ghost_home ? static_cast<std::uint32_t>(home.size()) : 0;
             visit(t, s, home, forward);
           });
   }
@@ -111,6 +137,13 @@ class CellSweep {
   std::size_t bytes() const;
 
  private:
+  /// Whether the n particles idx[0..n) are all ghosts (cells are whole: a
+  /// cell of another rank holds ghosts only; checked, not assumed).
+  static bool all_ghosts(const std::uint32_t* idx, std::uint32_t n, std::uint32_t ghost_begin) {
+    std::uint32_t lowest = ~std::uint32_t{0};
+    for (std::uint32_t k = 0; k < n; ++k) lowest = idx[k] < lowest ? idx[k] : lowest;
+    return lowest >= ghost_begin;
+  }
   struct SeamCell {
     std::uint32_t begin, end;
     double shift;

@@ -32,6 +32,10 @@ class ParticleGrid {
   /// the integrator's particles stay [0, owned).
   bool build(ParticleSet& ps, double cell_size, bool reorder, std::size_t owned = kAllOwned);
   static constexpr std::size_t kAllOwned = ~std::size_t{0};
+  /// First ghost index of the last build ([ghost_begin, size) are ghosts, in
+  /// cells of other ranks), or CellSweep::kNoGhosts for a serial run: the
+  /// cell sweep leaves out the pairs of two ghosts, which no rank integrates.
+  std::uint32_t ghost_begin() const { return ghost_begin_; }
   /// New index -> old index of the last build that reordered.
   std::span<const std::uint32_t> permutation() const { return sort_.permutation(); }
 
@@ -46,6 +50,7 @@ class ParticleGrid {
  private:
   Box domain_;
   double period_y_ = 0;
+  std::uint32_t ghost_begin_ = ~std::uint32_t{0};
   CellGrid grid_;
   std::unique_ptr<CellOrder> order_;
   std::unique_ptr<Gridder> gridder_;
