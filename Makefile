@@ -62,9 +62,12 @@ configure: deps $(BUILD)/CMakeCache.txt
 build: configure
 	cmake --build $(BUILD) -j $(JOBS)
 
+# The Python modules run $(JOBS) at a time (tools/run_python_tests.py: one
+# process each, longest first); `$(PYTHON) -m unittest discover -s
+# tests/python -v` with SPHNL_BUILD_DIR set runs the same tests serially.
 test: build
 	ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS)
-	SPHNL_BUILD_DIR=$(abspath $(BUILD)) $(PYTHON) -m unittest discover -s tests/python -v
+	SPHNL_BUILD_DIR=$(abspath $(BUILD)) $(PYTHON) tools/run_python_tests.py --jobs $(JOBS)
 
 # ASan + UBSan (any report fails the test: -fno-sanitize-recover, halt_on_error).
 test-sanitize: deps
