@@ -5,13 +5,17 @@ sphnl.neighbours(points, radius) is a first call of the C++ API every time
 benchmark row impl:api/call:first on the same cloud (the cubic lattice of
 benchmarks/peers/clouds.hpp, x fastest, R = 2.6 spacings): each round times
 one Python call in this process, then runs sphnl_bench for that one row and
-reads its s_call. Prints the medians and their ratio (README.md, "The API's
-cost"). Timings on a shared machine are a sanity check, not a finding.
+reads its s_call; which of the two goes first is drawn anew each round.
+Prints the medians and their ratio with its bootstrap 95 % interval, paired
+by round (harness.stats.paired_ratio_ci: Python and C++ of one round form
+one ratio), and the verdict against the target 1.2 (README.md, "What the
+API costs").
 
-    /usr/bin/python3 benchmarks/python_vs_cpp.py [--particles 1000000] [--threads 1] [--rounds 3]
+    /usr/bin/python3 benchmarks/python_vs_cpp.py [--particles 1000000] [--threads 1] [--rounds 9]
 """
 import argparse
 import json
+import random
 import statistics
 import subprocess
 import sys
@@ -22,6 +26,10 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+from harness.stats import paired_ratio_ci  # noqa: E402
+
+TARGET = 1.2  # Python at most 1.2 times the C++ call
 RADIUS = 2.6  # spacings, as benchmarks/search_benchmark.cpp (kRadius)
 
 
@@ -59,31 +67,50 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--particles", type=int, default=1_000_000)
     ap.add_argument("--threads", type=int, default=1)
-    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--rounds", type=int, default=9)
+    ap.add_argument("--seed", type=int, default=1, help="seed of the order drawn each round")
     ap.add_argument("--bench", default=str(ROOT / "build" / "benchmarks" / "sphnl_bench"))
     ap.add_argument("--module-dir", default=str(ROOT / "build" / "python"))
     args = ap.parse_args(argv)
     sys.path.insert(0, args.module_dir)
     import sphnl  # noqa: E402  (the module built by `make build`)
 
+    if args.rounds < 3:
+        ap.error(f"--rounds {args.rounds}: an interval needs at least 3 rounds")
     points = lattice(args.particles)
     py, cpp = [], []
+    order = random.Random(args.seed)
+    entries = 0
     with tempfile.TemporaryDirectory() as tmp:
         exp_path = Path(tmp) / "python_vs_cpp.json"
         exp_path.write_text(json.dumps(experiment(args.particles, args.threads)), encoding="utf-8")
         sphnl.neighbours(points[:1000], RADIUS)  # import and first-use costs outside the rounds
-        for _ in range(args.rounds):
+
+        def python_call():
+            nonlocal entries
             t0 = time.perf_counter()
             offsets, indices = sphnl.neighbours(points, RADIUS, threads=args.threads)
             py.append(time.perf_counter() - t0)
             entries = len(indices)
             del offsets, indices
+
+        def cpp_call():
             cpp.append(cpp_seconds(args.bench, exp_path, Path(tmp) / "out.json"))
+
+        for k in range(args.rounds):
+            calls = [python_call, cpp_call]
+            order.shuffle(calls)
+            for call in calls:
+                call()
+            print(f"round {k + 1}/{args.rounds}: python {py[-1]:.4f} s, C++ {cpp[-1]:.4f} s", file=sys.stderr, flush=True)
     mp, mc = statistics.median(py), statistics.median(cpp)
+    ratio, lo, hi = paired_ratio_ci([[t] for t in py], [[t] for t in cpp])
+    verdict = "met" if hi <= TARGET else "not met" if lo > TARGET else "unresolved"
     print(f"{len(points)} points, {entries} entries, {args.threads} thread(s), {args.rounds} interleaved rounds")
     print(f"python sphnl.neighbours   median {mp:.4f} s  ({', '.join(f'{t:.3f}' for t in py)})")
     print(f"C++ API (impl:api, first) median {mc:.4f} s  ({', '.join(f'{t:.3f}' for t in cpp)})")
-    print(f"python / C++ = {mp / mc:.3f}")
+    print(f"python / C++ = {ratio:.3f} [{lo:.3f}, {hi:.3f}] (95 % interval, paired by round): "
+          f"target <= {TARGET}: {verdict}")
     return 0
 
 

@@ -343,8 +343,10 @@ def medians(df):
 
 def derive_columns(med):
     """The convenience columns every reader of medians uses: t (seconds per
-    step), mem_mb (neighbour-structure MB) and N (particles simulated, as a
-    float: the counter n_particles, else the requested `particles`)."""
+    step), mem_mb (neighbour-structure MB), N (particles simulated, as a
+    float: the counter n_particles, else the requested `particles`),
+    nl_bytes_per_particle and, for Verlet lists, list_bytes_per_pair (list
+    bytes over the pairs the list stores; NaN for a cell-linked list)."""
     if "s_per_step" in med:
         med["t"] = med["s_per_step"]
     elif "window_steps" in med:
@@ -354,6 +356,14 @@ def derive_columns(med):
     if "particles" in med:
         med["N"] = med["n_particles"] if "n_particles" in med else med["particles"]
         med["N"] = med["N"].fillna(med["particles"]).astype(float)
+        if "nl_bytes" in med:
+            med["nl_bytes_per_particle"] = med["nl_bytes"] / med["N"]
+        if "list_bytes" in med and "candidates_per_particle" in med:
+            # A Verlet list's pass tests each stored pair once a step, so the
+            # candidates per particle (each pair counted for both particles)
+            # times N / 2 are the pairs stored; a cell-linked list stores none.
+            stored_pairs = med["candidates_per_particle"] * med["N"] / 2.0
+            med["list_bytes_per_pair"] = (med["list_bytes"] / stored_pairs).where(med["list_bytes"] > 0)
     return med
 
 
