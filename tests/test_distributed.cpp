@@ -56,6 +56,16 @@ TEST(Distributed, HybridRanksAndThreadsMatchSerial) {
   expect_ranks_match_serial(sc, {2});
 }
 
+TEST(Distributed, HybridWithThreadPhasesMatchesSerial) {
+  // thread_updates=phased plans a Verlet list's phases on the rows of the
+  // build's cells in key order, ghost cells with no owned neighbour included.
+  Scenario sc = scenario_with(ListKind::vlx);
+  sc.config.threads = 2;
+  sc.config.thread_updates = ThreadUpdates::phased;
+  sc.steps = 20;
+  expect_ranks_match_serial(sc, {3});
+}
+
 TEST(Distributed, KernelGradientCorrectionMatchesSerial) {
   Scenario sc = scenario_with(ListKind::vlx);
   sc.config.kgc = true;

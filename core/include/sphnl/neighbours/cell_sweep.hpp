@@ -83,7 +83,9 @@ class CellSweep {
               if (ghost_home && all_ghosts(idx + begin, total - begin, ghost_begin)) total = begin;
               if (shift != 0 && total > begin) seam[n_seam++] = {begin, total, shift};
             });
-            if (ghost_home && total == n_home) return;  // nothing but ghosts around
+            // A ghost cell with only ghosts around is still visited (with no
+            // candidate): a Verlet list gives every gridded particle its row
+            // in key order, which its thread phases count on.
             s.first_partner = ghost_home ? n_home : 0;
             s.buffer.gather(ps, idx, total, mask);
             for (int k = 0; k < n_seam; ++k) s.buffer.shift_y(seam[k].begin, seam[k].end, seam[k].shift);
