@@ -62,8 +62,8 @@ configure: deps $(BUILD)/CMakeCache.txt
 build: configure
 	cmake --build $(BUILD) -j $(JOBS)
 
-# The Python modules run $(JOBS) at a time (tools/run_python_tests.py: one
-# process each, longest first); `$(PYTHON) -m unittest discover -s
+# The Python test classes run $(JOBS) at a time (tools/run_python_tests.py:
+# one process each, longest first); `$(PYTHON) -m unittest discover -s
 # tests/python -v` with SPHNL_BUILD_DIR set runs the same tests serially.
 test: build
 	ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS)
