@@ -491,6 +491,47 @@ def sphnl_over_nanoflann(med, c):
         f"{note}; geometric mean over {len(common)} paired configurations", related
 
 
+# ------------------------------------- beyond the paper: precision of the pair kernel
+PRECISION_SOURCES = (("CLL+KGC", {"list": "cll", "kgc": 1}), ("VL_X", {"list": "vlx", "kgc": 0}),
+                     ("VL_X+KGC", {"list": "vlx", "kgc": 1}))
+
+
+def _precision_row(med, n, precision, list="cll", kgc=0):
+    if "precision" not in med:
+        raise NotMeasured("no precision axis in the results")
+    return _row(med, particles=n, precision=precision, list=list, kgc=kgc, threads=1)
+
+
+def _us_per_particle_step(med, c, precision):
+    """Seconds per step over the particles simulated, CLL without KGC, one
+    thread; related, the force phase alone."""
+    n, note = _at(med, c)
+    row = _precision_row(med, n, precision)
+    n_sim = float(row["N"])
+    return (1e6 * float(row["t"]) / n_sim, note.replace("(paper: ", "(claim read at ") + ", CLL, one thread",
+            {"force_us_per_particle_step": 1e6 * float(row["s_force"]) / n_sim})
+
+
+for _precision in ("double", "mixed"):
+    CLAIMS[f"step_us_{_precision}"] = functools.partial(_us_per_particle_step, precision=_precision)
+
+
+@claim("mixed_over_double")
+def mixed_over_double(med, c):
+    """Time per step in double over mixed, CLL without KGC; related, the same
+    ratio for the other pair sources measured and for the force phase."""
+    n, note = _at(med, c)
+    dbl, mixed = _precision_row(med, n, "double"), _precision_row(med, n, "mixed")
+    related = {"force_phase": float(dbl["s_force"]) / float(mixed["s_force"])}
+    for name, where in PRECISION_SOURCES:
+        try:
+            related[name] = _one(med, particles=n, precision="double", threads=1, **where) / \
+                _one(med, particles=n, precision="mixed", threads=1, **where)
+        except NotMeasured:
+            pass
+    return float(dbl["t"]) / float(mixed["t"]), note.replace("(paper: ", "(claim read at ") + ", CLL", related
+
+
 # ------------------------------------------------- beyond the paper: ranks (mpi kind)
 def _on(med, ranks, threads, **equal):
     """Rows of the layout `ranks` x `threads`."""

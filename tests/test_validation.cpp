@@ -54,15 +54,22 @@ double interpolate(const std::vector<Point>& s, double t) {
   return a.z + (b.z - a.z) * (t - a.t) / (b.t - a.t);
 }
 
-Simulation make_sim(const CaseGeometry& g, double dx, int threads) {
+Simulation make_sim(const CaseGeometry& g, double dx, int threads, Precision precision) {
   RunConfig c;
   c.progress = false;
   c.threads = threads;
+  c.precision = precision;
   const double h = kHcoef * std::sqrt(3.0) * dx;
   const PhysicsParams phys = PhysicsParams::make(h, g.still_water_depth, c.sound_speed_coef, c.viscosity_alpha,
                                                  c.xsph_epsilon, c.cfl, c.clamp_boundary_density);
   return Simulation(c, make_case(g, dx, Lattice::bcc, kHcoef, phys), phys);
 }
+
+/// Both validations run in each precision of the pair kernel (README.md,
+/// "Configuration"), with the same tolerances.
+class Validation : public ::testing::TestWithParam<Precision> {};
+
+std::string precision_name(const ::testing::TestParamInfo<Precision>& info) { return to_string(info.param); }
 
 }  // namespace
 
@@ -92,7 +99,7 @@ Simulation make_sim(const CaseGeometry& g, double dx, int threads) {
 // Geometry: docs/PHYSICS.md's 0.4 x 0.2 x 0.3 m for 1.5 s, at dx = 0.02 instead of
 // 0.01 (8168 particles, ~3100 steps, about a minute on two threads); the gauges
 // sit >= 3h = 0.09 m from walls, floor and surface.
-TEST(Validation, HydrostaticTank) {
+TEST_P(Validation, HydrostaticTank) {
   const double dx = 0.02, depth = 0.3, duration = 1.5, lx = 0.4, ly = 0.2;
   CaseGeometry g;
   g.tank = Box{{0, 0, 0}, {lx, ly, depth + 2 * dx}};
@@ -100,7 +107,7 @@ TEST(Validation, HydrostaticTank) {
   g.still_water_depth = depth;
   // One thread: with two OpenMP threads on two cores shared with other jobs the
   // per-step barriers made this run ten times slower (20 min instead of 1.5).
-  Simulation sim = make_sim(g, dx, 1);
+  Simulation sim = make_sim(g, dx, 1, GetParam());
   const ParticleSet& ps = sim.particles();
   const CubicSpline& kernel = sim.physics().kernel;
   const double h = sim.physics().h(), rho0 = sim.physics().rho0, gravity = sim.physics().gravity;
@@ -174,11 +181,11 @@ TEST(Validation, HydrostaticTank) {
     ++checked;
   }
   EXPECT_GE(checked, 30u);
-  std::printf("hydrostatic tank: %zu particles, %ld steps, surface %.4f m (initial %.4f)\n"
+  std::printf("hydrostatic tank, precision %s: %zu particles, %ld steps, surface %.4f m (initial %.4f)\n"
               "  max |v| %.4f m/s over the second half, %.4f over the whole run (limit %.4f)\n"
               "  %zu gauges, %ld samples: worst |P/(rho0 g d) - 1| = %.4f (tolerance 0.05)\n"
               "  single-particle P/(rho0 g d) in the same region ranges over [%.2f, %.2f] (not asserted)\n",
-              n, sim.steps_done(), surface, depth + 0.25 * dx, max_speed_late, max_speed_all, v_limit, checked, samples,
+              to_string(GetParam()), n, sim.steps_done(), surface, depth + 0.25 * dx, max_speed_late, max_speed_all, v_limit, checked, samples,
               worst, p_particle_min, p_particle_max);
 }
 
@@ -195,14 +202,14 @@ TEST(Validation, HydrostaticTank) {
 // against 1.5): the walls act through the artificial viscosity (alpha = 0.1
 // against v = 0 walls) and the corrugated pressure of the wall lattice.
 namespace {
-void check_martin_moyce(int dx_divisor) {
+void check_martin_moyce(int dx_divisor, Precision precision) {
   const double a = 2.25 * 0.0254, dx = a / dx_divisor, width = 10 * dx;  // >= 3 cells of 2h = 3 dx
   CaseGeometry g;
   g.tank = Box{{0, 0, 0}, {4.5 * a, width, 2 * a + 2 * dx}};
   g.water = {Box{{0, 0, 0}, {a, width, 2 * a}}};
   g.still_water_depth = 2 * a;
   g.periodic_y = true;
-  Simulation sim = make_sim(g, dx, 2);
+  Simulation sim = make_sim(g, dx, 2, precision);
   const ParticleSet& ps = sim.particles();
   const double t_scale = std::sqrt(2 * sim.physics().gravity / a);
   std::vector<Point> front;  // (T, Z)
@@ -214,8 +221,8 @@ void check_martin_moyce(int dx_divisor) {
     front.push_back({sim.time() * t_scale, x_max / a});
   }
   EXPECT_LE(sim.lost(), sim.case_info().n_fluid / 1000);
-  std::printf("Martin & Moyce, dx = a/%d, periodic slab of 10 dx: %zu particles (%zu fluid), %ld steps\n", dx_divisor,
-              ps.size(), sim.case_info().n_fluid, sim.steps_done());
+  std::printf("Martin & Moyce, precision %s, dx = a/%d, periodic slab of 10 dx: %zu particles (%zu fluid), %ld steps\n",
+              to_string(precision), dx_divisor, ps.size(), sim.case_info().n_fluid, sim.steps_done());
   int compared = 0;
   for (const char* file : {"martin_moyce_1952_a2.25in.csv", "martin_moyce_1952_a1.125in.csv"}) {
     for (const Point& e : read_table(std::string(SPHNL_SOURCE_DIR) + "/tests/data/" + file)) {
@@ -233,9 +240,12 @@ void check_martin_moyce(int dx_divisor) {
 // dx = a/20 by default: a coarse resolution for the test suite's
 // time budget (~1 min on 2 cores; a/40, docs/PHYSICS.md's, is 16 times the work).
 // SPHNL_MARTIN_MOYCE_DX_DIVISOR=40 runs docs/PHYSICS.md's resolution.
-TEST(Validation, MartinMoyceDamBreakFront) {
+TEST_P(Validation, MartinMoyceDamBreakFront) {
   const char* divisor = std::getenv("SPHNL_MARTIN_MOYCE_DX_DIVISOR");
   const int n = divisor ? std::atoi(divisor) : 20;
   ASSERT_GE(n, 10) << "SPHNL_MARTIN_MOYCE_DX_DIVISOR must be an integer >= 10, got '" << divisor << "'";
-  check_martin_moyce(n);
+  check_martin_moyce(n, GetParam());
 }
+
+INSTANTIATE_TEST_SUITE_P(Precision, Validation, ::testing::Values(Precision::double_precision, Precision::mixed),
+                         precision_name);

@@ -21,6 +21,7 @@ constexpr std::array kSlidingNames{"occupied", "shift_all"};
 constexpr std::array kInitialOrderNames{"generated", "shuffled"};
 constexpr std::array kOnOffNames{"on", "off"};
 constexpr std::array kThreadUpdateNames{"private", "phased"};
+constexpr std::array kPrecisionNames{"double", "mixed"};
 
 template <class Names>
 std::string join(const Names& names) {
@@ -130,6 +131,8 @@ const std::vector<Key>& key_table() {
        [](const RunConfig& c) { return json(c.kgc); }},
       {"verify_lists", [](RunConfig& c, const json& v) { c.verify_lists = get_bool("verify_lists", v); },
        [](const RunConfig& c) { return json(c.verify_lists); }},
+      {"precision", [](RunConfig& c, const json& v) { c.precision = get_enum<Precision>("precision", v, kPrecisionNames); },
+       [](const RunConfig& c) { return json(to_string(c.precision)); }},
       {"pair_loop", [](RunConfig& c, const json& v) { c.pair_loop = get_enum<PairLoopKind>("pair_loop", v, kPairLoopNames); },
        [](const RunConfig& c) { return json(to_string(c.pair_loop)); }},
       {"simd", [](RunConfig& c, const json& v) { c.simd = get_enum<int>("simd", v, kOnOffNames) == 0; },

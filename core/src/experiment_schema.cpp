@@ -72,6 +72,8 @@ const std::vector<Axis>& axes() {
       {"extra_loops", {"step", "counters"}, {}, {}},
       // how threads > 1 keep from writing one particle at once (default private)
       {"thread_updates", {"step", "counters"}, {}, {}},
+      // the pair kernel's arithmetic (default double)
+      {"precision", {"step", "counters"}, {}, {}},
       // the search family's peers and clouds (benchmarks/search_benchmark.cpp;
       // a sweep without them means sphnl, lattice, generated, warm)
       {"impl", {"search"}, {}, one_of({"sphnl", "nanoflann", "api", "api_visit"})},

@@ -71,6 +71,9 @@ void Simulation::init(Communicator* comm) {
   if (config_.pair_loop == PairLoopKind::direct && case_.period_y > 0)
     throw ConfigError("pair_loop = direct: this case has a periodic y, whose image shift needs the gathered "
                       "copies of the cells; use pair_loop = gather");
+  if (config_.precision == Precision::mixed && !config_.simd)
+    throw ConfigError("precision = mixed has only the vectorised pair kernel (simd = off is an ablation of the "
+                      "double kernel); use simd = on, or precision = double");
   pair_options_.loop = config_.pair_loop;
   pair_options_.simd = config_.simd;
   pair_options_.skip_boundary_pairs = config_.skip_boundary_pairs;
@@ -82,6 +85,8 @@ void Simulation::init(Communicator* comm) {
   kgc_ops_.assign(config_.threads, KgcMatrixOp{&phys_});
   force_ops_scalar_.assign(config_.threads, ForceOp<false, false>{&phys_, 0});
   force_ops_kgc_scalar_.assign(config_.threads, ForceOp<true, false>{&phys_, 0});
+  force_ops_mixed_.assign(config_.threads, ForceOp<false, true, float>{&phys_, 0});
+  force_ops_kgc_mixed_.assign(config_.threads, ForceOp<true, true, float>{&phys_, 0});
   kgc_ops_scalar_.assign(config_.threads, KgcMatrixPass<false>{&phys_});
   if (config_.verify_lists && config_.list != ListKind::cll)
     verify_grid_ = make_particle_grid();
@@ -135,8 +140,11 @@ std::uint64_t Simulation::count_list_misses() {
 }
 
 [[gnu::noinline]] void Simulation::compute_forces() {
-  // One run-time choice per step: the vectorised or the scalar pair kernels.
-  if (config_.simd) compute_forces_with(force_ops_, force_ops_kgc_, kgc_ops_);
+  // One run-time choice per step: the vectorised or the scalar pair kernels,
+  // in double or mixed precision. precision=mixed changes the main loop's
+  // kernel only: KGC's matrix pass M_a (and so L_a) is double in both.
+  if (config_.precision == Precision::mixed) compute_forces_with(force_ops_mixed_, force_ops_kgc_mixed_, kgc_ops_);
+  else if (config_.simd) compute_forces_with(force_ops_, force_ops_kgc_, kgc_ops_);
   else compute_forces_with(force_ops_scalar_, force_ops_kgc_scalar_, kgc_ops_scalar_);
 }
 

@@ -53,6 +53,7 @@ struct RunConfig {
   double skin_factor = 0;      // nu of Delta h; 0 = paper default (1.2 VL_C, 1.0 VL_X)
   bool kgc = false;            // kernel gradient correction: the second loop per step
   bool verify_lists = false;   // check every step that no interacting pair is missing
+  Precision precision = Precision::double_precision;  // the pair kernel's arithmetic (kinds.hpp)
   // ablations (README.md, "Ablations"); the defaults are the normal path
   PairLoopKind pair_loop = PairLoopKind::gather;  // cell-linked list: gather buffers or in place
   bool simd = true;                 // false: the scalar distance filter and pair kernels

@@ -34,15 +34,19 @@ struct CubicSpline {
   // select the branch without a jump, so that they vectorise; w() and f() add
   // the q > 2 case for callers that have not filtered.
 
-  /// W at q = r/h in [0, 2], eq. 1: both pieces of the cubic spline.
-  double w_of_q(double q) const {
-    const double t = 2.0 - q;
-    return q <= 1.0 ? a2 * (1.0 - 1.5 * q * q + 0.75 * q * q * q) : 0.25 * a2 * t * t * t;
+  /// W at q = r/h in [0, 2], eq. 1: both pieces of the cubic spline. `Real`
+  /// is the arithmetic the caller evaluates in (double, or float for
+  /// precision = mixed); the coefficients are rounded to it once.
+  template <class Real>
+  Real w_of_q(Real q) const {
+    const Real t = Real(2) - q, a = static_cast<Real>(a2);
+    return q <= Real(1) ? a * (Real(1) - Real(1.5) * q * q + Real(0.75) * q * q * q) : Real(0.25) * a * t * t * t;
   }
   /// r F = dW/dr at q = r/h in [0, 2]; F = (dW/dr)/r is this times 1/r.
-  double dwdr_of_q(double q) const {
-    const double t = 2.0 - q;
-    return q <= 1.0 ? (c1 * q + d1 * q * q) : c2 * t * t;
+  template <class Real>
+  Real dwdr_of_q(Real q) const {
+    const Real t = Real(2) - q;
+    return q <= Real(1) ? (static_cast<Real>(c1) * q + static_cast<Real>(d1) * q * q) : static_cast<Real>(c2) * t * t;
   }
 
   /// W(r), eq. 1.

@@ -34,6 +34,13 @@ enum class InitialOrder : std::uint8_t { generated, shuffled };
 /// run in phases in which no two threads write one cell (ThreadPhases).
 enum class ThreadUpdates : std::uint8_t { private_accumulators, phased };
 
+/// Arithmetic of the pair kernel (config `precision`): `double` throughout
+/// (config value `double`), or `mixed`: differences of positions and
+/// velocities in double rounded to float, the pair's kernel and terms in
+/// float, every sum over pairs and the time integration in double
+/// (pair_kernel.hpp). The neighbour search is double in both.
+enum class Precision : std::uint8_t { double_precision, mixed };
+
 const char* to_string(GridderKind g);
 const char* to_string(CellOrderKind o);
 const char* to_string(ListKind l);
@@ -41,5 +48,6 @@ const char* to_string(PairLoopKind p);
 const char* to_string(SlidingVariant v);
 const char* to_string(InitialOrder o);
 const char* to_string(ThreadUpdates u);
+const char* to_string(Precision p);
 
 }  // namespace sphnl

@@ -139,6 +139,9 @@ class Simulation {
   std::vector<KgcMatrixPass<false>> kgc_ops_scalar_;
   std::vector<ForceOp<false, false>> force_ops_scalar_;
   std::vector<ForceOp<true, false>> force_ops_kgc_scalar_;
+  // precision=mixed: the pair's arithmetic in float (pair_kernel.hpp)
+  std::vector<ForceOp<false, true, float>> force_ops_mixed_;
+  std::vector<ForceOp<true, true, float>> force_ops_kgc_mixed_;
   PairLoopOptions pair_options_;
   PhaseTimes times_;
   NeighbourStats stats_;
