@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <type_traits>
 
 #include "sphnl/neighbours/pair_operation.hpp"
 #include "sphnl/particle_view.hpp"
@@ -20,27 +21,34 @@ namespace sphnl {
 /// `Simd` = false keeps the compiler from vectorising the loop over the
 /// neighbours (the ablation `simd=off`, README.md); the arithmetic is the same.
 /// `Real` is the arithmetic of the pair (the option `precision`): double, or
-/// float for `precision=mixed`. In mixed precision the differences of
-/// positions and velocities are taken in double (so they are exact to double
-/// round-off however far the particles are from the origin) and rounded to
-/// float; the kernel, the pressure, viscosity and XSPH terms of the pair are
-/// float; every sum over pairs and the time integration stay double.
+/// float for `precision=mixed`. In mixed precision the kernel, the pressure,
+/// viscosity and XSPH terms of the pair are float, and the operation reads
+/// what it is given: from the cell-linked list a ParticleViewF (the gather
+/// buffer's float copy, positions relative to its first entry, so float
+/// keeps nearby particles' differences to ~1e-9 m), its partial sums over one
+/// home cell's pairs then float, added to the particles' double totals once
+/// per home cell; from a Verlet list the particles' own double arrays, the
+/// differences taken in double and rounded to float, the sums double. The
+/// time integration is double in both.
 template <bool Kgc, bool Simd = true, class Real = double>
 struct ForceOp {
   static constexpr unsigned kFields = fields::position | fields::mass_rho | fields::force_in | fields::force_out |
-                                     (Kgc ? fields::kgc_l : 0u);
+                                     (Kgc ? fields::kgc_l : 0u) |
+                                     (std::is_same_v<Real, float> ? fields::float_copy : 0u);
   const PhysicsParams* phys = nullptr;
   double max_mu = 0;  // max_ab |h v_ab . r_ab / (r^2 + eta^2)|, for dt_cv (eq. 7)
 
   /// Particle i interacts with js[0..n) (all distinct, all with r < 2h).
-  void interact(const ParticleView& v, std::uint32_t i, const std::uint32_t* __restrict js, int n) {
+  template <class T>
+  void interact(const BasicParticleView<T>& v, std::uint32_t i, const std::uint32_t* __restrict js, int n) {
     using R = Real;
+    using Sum = T;  // the view's own type: double sums for double views, float partial sums for the buffer's copy
     const CubicSpline k = phys->kernel;  // a local copy: the stores below cannot alias it
     const R h = static_cast<R>(k.h), inv_h = static_cast<R>(k.inv_h);
     const R inv_w_dp = static_cast<R>(k.inv_w_dp), eta2 = static_cast<R>(phys->eta2);
     const R alpha = static_cast<R>(phys->alpha), eps = static_cast<R>(phys->xsph_epsilon);
-    const double xa = v.x[i], ya = v.y[i], za = v.z[i];
-    const double vxa = v.vx[i], vya = v.vy[i], vza = v.vz[i];
+    const T xa = v.x[i], ya = v.y[i], za = v.z[i];
+    const T vxa = v.vx[i], vya = v.vy[i], vza = v.vz[i];
     const R rhoa = static_cast<R>(v.rho[i]), ma = static_cast<R>(v.mass[i]);
     const R pra = static_cast<R>(v.p_over_rho2[i]), ra = static_cast<R>(v.tensile_r[i]);
     const R ca = static_cast<R>(v.sound_speed[i]), fluid_a = static_cast<R>(v.is_fluid[i]);
@@ -48,7 +56,7 @@ struct ForceOp {
     if constexpr (Kgc)
       for (int c = 0; c < 6; ++c) la[c] = static_cast<R>(v.kgc[c][i]);
 
-    double axa = 0, aya = 0, aza = 0, drhoa = 0, uxa = 0, uya = 0, uza = 0;
+    Sum axa = 0, aya = 0, aza = 0, drhoa = 0, uxa = 0, uya = 0, uza = 0;
     R mu_max = static_cast<R>(max_mu);
 #pragma omp simd reduction(+ : axa, aya, aza, drhoa, uxa, uya, uza) reduction(max : mu_max) if(simd : Simd)
     for (int p = 0; p < n; ++p) {

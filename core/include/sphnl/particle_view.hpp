@@ -2,39 +2,45 @@
 // ParticleView: raw pointers to the fields the pair loops read and write. It
 // points either at the global ParticleSet (Verlet lists) or at a small
 // cell-gather buffer (cell-linked list), so one pair kernel serves both.
+// ParticleViewF is the same in float: the cell-gather buffer's float copy
+// for precision=mixed (positions relative to the buffer's first entry).
 #include <cstdint>
+#include <type_traits>
 
 #include "sphnl/particles.hpp"
 
 namespace sphnl {
 
-struct ParticleView {
+template <class T>
+struct BasicParticleView {
   // read
-  const double* __restrict x = nullptr;
-  const double* __restrict y = nullptr;
-  const double* __restrict z = nullptr;
-  const double* __restrict vx = nullptr;
-  const double* __restrict vy = nullptr;
-  const double* __restrict vz = nullptr;
-  const double* __restrict rho = nullptr;
-  const double* __restrict mass = nullptr;
-  const double* __restrict p_over_rho2 = nullptr;
-  const double* __restrict tensile_r = nullptr;
-  const double* __restrict sound_speed = nullptr;
-  const double* __restrict is_fluid = nullptr;
-  const double* __restrict kgc[6] = {};  // L_a, only read by the corrected kernel
+  const T* __restrict x = nullptr;
+  const T* __restrict y = nullptr;
+  const T* __restrict z = nullptr;
+  const T* __restrict vx = nullptr;
+  const T* __restrict vy = nullptr;
+  const T* __restrict vz = nullptr;
+  const T* __restrict rho = nullptr;
+  const T* __restrict mass = nullptr;
+  const T* __restrict p_over_rho2 = nullptr;
+  const T* __restrict tensile_r = nullptr;
+  const T* __restrict sound_speed = nullptr;
+  const T* __restrict is_fluid = nullptr;
+  const T* __restrict kgc[6] = {};  // L_a, only read by the corrected kernel
   // accumulate
-  double* __restrict ax = nullptr;
-  double* __restrict ay = nullptr;
-  double* __restrict az = nullptr;
-  double* __restrict drho = nullptr;
-  double* __restrict ux = nullptr;
-  double* __restrict uy = nullptr;
-  double* __restrict uz = nullptr;
-  double* __restrict m_kgc[6] = {};      // M_a accumulated by the KGC pre-pass
+  T* __restrict ax = nullptr;
+  T* __restrict ay = nullptr;
+  T* __restrict az = nullptr;
+  T* __restrict drho = nullptr;
+  T* __restrict ux = nullptr;
+  T* __restrict uy = nullptr;
+  T* __restrict uz = nullptr;
+  T* __restrict m_kgc[6] = {};      // M_a accumulated by the KGC pre-pass
 
-  static ParticleView of(ParticleSet& ps) {
-    ParticleView v;
+  static BasicParticleView of(ParticleSet& ps)
+    requires std::is_same_v<T, double>
+  {
+    BasicParticleView v;
     v.x = ps.x.data(); v.y = ps.y.data(); v.z = ps.z.data();
     v.vx = ps.vx.data(); v.vy = ps.vy.data(); v.vz = ps.vz.data();
     v.rho = ps.rho.data(); v.mass = ps.mass.data();
@@ -46,6 +52,9 @@ struct ParticleView {
     return v;
   }
 };
+
+using ParticleView = BasicParticleView<double>;
+using ParticleViewF = BasicParticleView<float>;
 
 }  // namespace sphnl
 
@@ -59,5 +68,9 @@ inline constexpr unsigned force_in = 4u;     // v, p_over_rho2, tensile_r, sound
 inline constexpr unsigned kgc_l = 8u;        // L_a
 inline constexpr unsigned force_out = 16u;   // ax, ay, az, drho, ux, uy, uz
 inline constexpr unsigned kgc_m_out = 32u;   // M_a
+// A float copy of the read fields (positions relative to the buffer's first
+// entry) and float accumulators for force_out, for a pair operation that
+// reads ParticleViewF (precision=mixed on the cell-linked list).
+inline constexpr unsigned float_copy = 64u;
 }  // namespace fields
 }  // namespace sphnl

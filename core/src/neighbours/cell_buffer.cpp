@@ -18,8 +18,12 @@ template <class T>
 void gather_field(double* __restrict dst, const T* __restrict src, const std::uint32_t* __restrict index, std::uint32_t n) {
   for (std::uint32_t k = 0; k < n; ++k) dst[k] = src[index[k]];
 }
-void scatter_field(double* __restrict dst, const double* __restrict src, const std::uint32_t* __restrict index, std::uint32_t n) {
-  for (std::uint32_t k = 0; k < n; ++k) dst[index[k]] += src[k];
+template <class T>
+void scatter_field(double* __restrict dst, const T* __restrict src, const std::uint32_t* __restrict index, std::uint32_t n) {
+  for (std::uint32_t k = 0; k < n; ++k) dst[index[k]] += static_cast<double>(src[k]);
+}
+void to_float(float* __restrict dst, const double* __restrict src, double origin, std::uint32_t n) {
+  for (std::uint32_t k = 0; k < n; ++k) dst[k] = static_cast<float>(src[k] - origin);
 }
 }  // namespace
 
@@ -35,6 +39,38 @@ void CellBuffer::reserve(std::size_t capacity) {
   view_.ax = p(AX); view_.ay = p(AY); view_.az = p(AZ); view_.drho = p(DRHO);
   view_.ux = p(UX); view_.uy = p(UY); view_.uz = p(UZ);
   for (int k = 0; k < 6; ++k) { view_.kgc[k] = p(L0 + k); view_.m_kgc[k] = p(M0 + k); }
+  if (!float_arrays_.empty()) {
+    float_arrays_.clear();  // reallocated at the new capacity by the next fill_float
+    float_view_ = ParticleViewF{};
+  }
+}
+
+void CellBuffer::fill_float(unsigned mask) {
+  if (float_arrays_.empty()) {
+    float_arrays_.resize(NUM_SLOTS);
+    for (auto& a : float_arrays_) a.resize(index_.size());
+    auto p = [this](int s) { return float_arrays_[s].data(); };
+    ParticleViewF& v = float_view_;
+    v.x = p(X); v.y = p(Y); v.z = p(Z); v.is_fluid = p(IS_FLUID);
+    v.mass = p(MASS); v.rho = p(RHO); v.vx = p(VX); v.vy = p(VY); v.vz = p(VZ);
+    v.p_over_rho2 = p(PR); v.tensile_r = p(TR); v.sound_speed = p(C);
+    v.ax = p(AX); v.ay = p(AY); v.az = p(AZ); v.drho = p(DRHO);
+    v.ux = p(UX); v.uy = p(UY); v.uz = p(UZ);
+    for (int k = 0; k < 6; ++k) { v.kgc[k] = p(L0 + k); v.m_kgc[k] = p(M0 + k); }
+  }
+  if (size_ == 0) return;
+  auto f = [&](int slot, double origin = 0) {
+    to_float(float_arrays_[slot].data(), arrays_[slot].data(), origin, size_);
+  };
+  f(X, arrays_[X][0]); f(Y, arrays_[Y][0]); f(Z, arrays_[Z][0]); f(IS_FLUID);
+  if (mask & (fields::mass_rho | fields::force_in)) { f(MASS); f(RHO); }
+  if (mask & fields::force_in) {
+    f(VX); f(VY); f(VZ); f(PR); f(TR); f(C);
+  }
+  if (mask & fields::kgc_l)
+    for (int k = 0; k < 6; ++k) f(L0 + k);
+  if (mask & fields::force_out)
+    for (int s = AX; s <= UZ; ++s) std::fill_n(float_arrays_[s].data(), size_, 0.0f);
 }
 
 void CellBuffer::gather(const ParticleSet& ps, const std::uint32_t* index, std::uint32_t count, unsigned mask) {
@@ -64,7 +100,12 @@ void CellBuffer::shift_y(std::uint32_t begin, std::uint32_t end, double shift) {
 
 void CellBuffer::scatter_add(const ParticleView& t, unsigned mask) const {
   const std::uint32_t* idx = index_.data();
-  auto s = [&](double* dst, int slot) { scatter_field(dst, arrays_[slot].data(), idx, size_); };
+  auto s = [&](double* dst, int slot) {
+    if (slot >= AX && slot <= UZ && (mask & fields::float_copy))
+      scatter_field(dst, float_arrays_[slot].data(), idx, size_);
+    else
+      scatter_field(dst, arrays_[slot].data(), idx, size_);
+  };
   if (mask & fields::force_out) {
     s(t.ax, AX); s(t.ay, AY); s(t.az, AZ); s(t.drho, DRHO);
     s(t.ux, UX); s(t.uy, UY); s(t.uz, UZ);
@@ -76,6 +117,7 @@ void CellBuffer::scatter_add(const ParticleView& t, unsigned mask) const {
 std::size_t CellBuffer::bytes() const {
   std::size_t b = index_.capacity() * sizeof(std::uint32_t);
   for (const auto& a : arrays_) b += a.capacity() * sizeof(double);
+  for (const auto& a : float_arrays_) b += a.capacity() * sizeof(float);
   return b;
 }
 

@@ -52,9 +52,13 @@ class CellLinkedList {
                  HomeCandidates<Simd, SkipBoundaryPairs> home(v, s.buffer.size(), s.fluid_slots, s.first_partner);
                  std::uint32_t* survivors = s.survivors.data();
                  PairCounts& c = counts_[t];
+                 // The filter reads the double copy; an operation asking for the
+                 // float copy (precision=mixed) reads that one.
+                 const ParticleViewF vf = s.buffer.float_view();
                  for (std::uint32_t i = 0; i < n_home; ++i) {
                    const int m = home.filter(i, support2, survivors, c.candidates);
-                   ops[t].interact(v, i, survivors, m);
+                   if constexpr ((Op::kFields & fields::float_copy) != 0) ops[t].interact(vf, i, survivors, m);
+                   else ops[t].interact(v, i, survivors, m);
                    c.interactions += static_cast<std::uint64_t>(m);
                  }
                },

@@ -89,8 +89,9 @@ class CellSweep {
             s.first_partner = ghost_home ? n_home : 0;
             s.buffer.gather(ps, idx, total, mask);
             for (int k = 0; k < n_seam; ++k) s.buffer.shift_y(seam[k].begin, seam[k].end, seam[k].shift);
+            if (mask & fields::float_copy) s.buffer.fill_float(mask);
             visit(t, s, n_home);
-            if (outputs) s.buffer.scatter_add(s.target, outputs);
+            if (outputs) s.buffer.scatter_add(s.target, outputs | (mask & fields::float_copy));
           });
   }
 
