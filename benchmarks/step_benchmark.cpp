@@ -42,11 +42,23 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
   cfg.dx = start.case_info().dx;  // the same case, without searching dx again
   Simulation sim(cfg);
   std::size_t max_bytes = 0;  // over every step of every window (docs/CONTRACTS.md §2: nl_bytes)
+  // The core's speed right before and after each window (one 5 ms trial of
+  // the FMA kernel each, untimed): on a shared host the core itself can slow
+  // down with no steal time and cpu_time = real_time in the guest, and this
+  // is the record of it for each repetition (docs/MEASUREMENT.md).
+  double probe_sum = 0;
+  int probes = 0;
   for (auto _ : state) {
     state.PauseTiming();
     sim.restore(start.particles(), start.time(), start.steps_done(), start.lost());
+    if (roofline) probe_sum += measure_fma_peak_double_gflops(1, 0.005), ++probes;
     state.ResumeTiming();
     timed_window(sim, window, max_bytes);
+    if (roofline) {
+      state.PauseTiming();
+      probe_sum += measure_fma_peak_double_gflops(1, 0.005), ++probes;
+      state.ResumeTiming();
+    }
   }
   // Counters describe the last window (every window times the same steps).
   const double steps = static_cast<double>(sim.steps_done() - start.steps_done());
@@ -80,6 +92,7 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
     c["force_gflops"] = gflops;
     c["fma_peak_gflops"] = peak;
     c["force_peak_fraction"] = gflops / (peak * cfg.threads);
+    c["core_gflops_around_window"] = probes ? probe_sum / probes : 0.0;
   }
   c["vl_misses"] = static_cast<double>(s.vl_misses);
   c["extra_loop_passes"] = static_cast<double>(s.extra_loop_passes);
