@@ -43,7 +43,7 @@ COUNTERS_BUILD ?= build-counters
 # The two physics validations (hydrostatic tank, Martin & Moyce front) run
 # minutes of simulated flow; under the sanitizers' ~3x slowdown they would
 # double CI time while exercising the same code the other tests cover.
-SANITIZE_SKIP ?= ^Validation\.
+SANITIZE_SKIP ?= ^Precision/Validation\.
 
 .PHONY: all deps configure build test test-cpp test-python test-sanitize test-portable reproduce ablations figures bench compare run replicate clean counters-build
 

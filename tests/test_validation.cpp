@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <ostream>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -16,6 +17,11 @@
 #include "sphnl/simulation.hpp"
 
 using namespace sphnl;
+
+namespace sphnl {
+// How googletest names a precision in test output ("double", "mixed").
+void PrintTo(Precision p, std::ostream* os) { *os << to_string(p); }
+}  // namespace sphnl
 
 namespace {
 
