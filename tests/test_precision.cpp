@@ -1,6 +1,8 @@
-// precision = mixed (README.md, "Configuration"): the pair kernel in float
-// over differences taken in double, every sum and the time integration in
-// double. The neighbour search is the same code in both precisions, so the
+// precision = mixed (README.md, "Precision of the pair kernel"): the pair
+// kernel in float (on the cell-linked list over the gather buffer's float
+// copy, on a Verlet list over double differences), the particles' totals and
+// the time integration in double. The neighbour search is the same code in
+// both precisions, so the
 // pairs must be the same for every pair source; the state may move away
 // from double's only by what float round-off in the pair terms explains,
 // which these tests bound after 1 000 steps. The hydrostatic and Martin &
@@ -33,7 +35,7 @@ struct PairSource {
 };
 
 // Every pair source of the main loop: the cell sweep, both Verlet lists, and
-// KGC's second loop over the cell sweep.
+// KGC's corrected loop over the cell sweep and over a Verlet list.
 const PairSource kSources[] = {{"CLL", ListKind::cll, false},
                                {"VL_C", ListKind::vlc, false},
                                {"VL_X", ListKind::vlx, false},
