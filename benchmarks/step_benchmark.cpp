@@ -25,18 +25,21 @@ const std::vector<std::string> kAxes = {"particles", "gridder", "cell_order", "r
                                         "pair_loop", "simd", "skip_boundary_pairs", "gridder_a_variant",
                                         "initial_order", "extra_loops", "thread_updates", "precision", "cache_model"};
 
-/// This core's double FMA peak (GFlop/s), measured once per process before its
-/// first window (docs/PERFORMANCE.md: the best of 3 trials of 20 ms).
-double core_fma_peak_gflops() {
-  static const double peak = measure_fma_peak_double_gflops();
-  return peak;
+/// This core's FMA peak (GFlop/s) in the pair kernel's precision (float for
+/// precision=mixed), measured once per process before its first window
+/// (docs/PERFORMANCE.md: the best of 3 trials of 20 ms).
+double core_fma_peak_gflops(Precision precision) {
+  static const double peak_double = measure_fma_peak_double_gflops();
+  if (precision == Precision::double_precision) return peak_double;
+  static const double peak_float = measure_fma_peak_float_gflops();
+  return peak_float;
 }
 
 void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const std::vector<double>& flow_times,
                int window, const std::string& cache_dir, bool roofline) {
   const long sequence = next_run_sequence();
   // Before the windows: measured inside the first one, the peak would be timed with it.
-  const double peak = roofline ? core_fma_peak_gflops() : 0.0;
+  const double peak = roofline ? core_fma_peak_gflops(cfg.precision) : 0.0;
   const Simulation& start =
       developed_flow({cfg.particles, cfg.lattice, cfg.h_coefficient, flow_time}, flow_times, cache_dir);
   cfg.dx = start.case_info().dx;  // the same case, without searching dx again

@@ -102,10 +102,12 @@ double thread_cpu_seconds() {
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
-double measure_fma_peak_double_gflops(int trials, double seconds) {
-  auto time = [](std::int64_t rounds, double& flops) {
+namespace {
+/// The best of `trials` runs of about `seconds` of thread CPU time of `kernel`.
+double best_gflops(double (*kernel)(std::int64_t), int trials, double seconds) {
+  auto time = [kernel](std::int64_t rounds, double& flops) {
     const double t0 = thread_cpu_seconds();
-    flops = fma_flops_double(rounds);
+    flops = kernel(rounds);
     return thread_cpu_seconds() - t0;
   };
   // Size the trials: rounds that take about `seconds` at the speed of a first short run.
@@ -119,6 +121,15 @@ double measure_fma_peak_double_gflops(int trials, double seconds) {
     best = std::max(best, flops / s * 1e-9);
   }
   return best;
+}
+}  // namespace
+
+double measure_fma_peak_double_gflops(int trials, double seconds) {
+  return best_gflops(fma_flops_double, trials, seconds);
+}
+
+double measure_fma_peak_float_gflops(int trials, double seconds) {
+  return best_gflops(fma_flops_float, trials, seconds);
 }
 
 }  // namespace sphnl::bench

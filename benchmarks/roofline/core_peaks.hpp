@@ -54,5 +54,7 @@ double thread_cpu_seconds();
 /// the core does while it runs this thread (the least disturbed trial is the
 /// closest to it: caches and the clock shared with other work only slow it).
 double measure_fma_peak_double_gflops(int trials = 3, double seconds = 0.02);
+/// The same with the float kernel (the peak of precision=mixed's pair kernel).
+double measure_fma_peak_float_gflops(int trials = 3, double seconds = 0.02);
 
 }  // namespace sphnl::bench
