@@ -25,7 +25,7 @@ namespace sphnl {
 /// viscosity and XSPH terms of the pair are float, and the operation reads
 /// what it is given: from the cell-linked list a ParticleViewF (the gather
 /// buffer's float copy, positions relative to its first entry, so float
-/// keeps nearby particles' differences to ~1e-9 m), its partial sums over one
+/// keeps nearby particles' differences to a few 1e-9 m), its partial sums over one
 /// home cell's pairs then float, added to the particles' double totals once
 /// per home cell; from a Verlet list the particles' own double arrays, the
 /// differences taken in double and rounded to float, the sums double. The

@@ -5,7 +5,7 @@
 // accumulated results are added back to the particles once per home cell.
 // For precision=mixed it also holds a float copy (fill_float): positions
 // relative to the first entry, so that float keeps the differences of nearby
-// particles to ~1e-9 m wherever the tank is, and float accumulators, whose
+// particles to a few 1e-9 m wherever the tank is, and float accumulators, whose
 // per-home-cell partial sums are added to the particles' double totals.
 #include <cstdint>
 #include <vector>
