@@ -166,3 +166,18 @@ TEST(Precision, MixedMovesNoFurtherFromDoubleThanAFloatUlpOfThePositions) {
     EXPECT_GT(m_pos, 0.0) << s.name << ": mixed gave double's state; is the float kernel in use?";
   }
 }
+
+// Two threads in mixed reach one thread's state to round-off after 100 steps,
+// as in double (test_ablations): each home cell's float partial sums are the
+// same whichever thread runs the cell, and only the order in which the
+// threads' double totals are added differs (private copies, or phases).
+TEST(Precision, TwoThreadsGiveOneThreadsStateToRoundOff) {
+  for (const PairSource& s : {kSources[0], kSources[2], kSources[3]})
+    for (ThreadUpdates updates : {ThreadUpdates::private_accumulators, ThreadUpdates::phased}) {
+      RunConfig one = config_of(s, Precision::mixed), two = one;
+      two.threads = 2;
+      two.thread_updates = updates;
+      expect_roundoff_apart(state_after(two, 100), state_after(one, 100),
+                            std::string(s.name) + " thread_updates=" + to_string(updates));
+    }
+}
