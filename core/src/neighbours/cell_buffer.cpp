@@ -25,39 +25,31 @@ void scatter_field(double* __restrict dst, const T* __restrict src, const std::u
 void to_float(float* __restrict dst, const double* __restrict src, double origin, std::uint32_t n) {
   for (std::uint32_t k = 0; k < n; ++k) dst[k] = static_cast<float>(src[k] - origin);
 }
+
+/// Sizes one array per slot to `capacity` and points `view` at them.
+template <class T>
+void allocate_slots(std::vector<std::vector<T>>& arrays, std::size_t capacity, BasicParticleView<T>& view) {
+  arrays.resize(NUM_SLOTS);
+  for (auto& a : arrays) a.resize(capacity);
+  auto p = [&arrays](int s) { return arrays[s].data(); };
+  view.x = p(X); view.y = p(Y); view.z = p(Z); view.is_fluid = p(IS_FLUID);
+  view.mass = p(MASS); view.rho = p(RHO); view.vx = p(VX); view.vy = p(VY); view.vz = p(VZ);
+  view.p_over_rho2 = p(PR); view.tensile_r = p(TR); view.sound_speed = p(C);
+  view.ax = p(AX); view.ay = p(AY); view.az = p(AZ); view.drho = p(DRHO);
+  view.ux = p(UX); view.uy = p(UY); view.uz = p(UZ);
+  for (int k = 0; k < 6; ++k) { view.kgc[k] = p(L0 + k); view.m_kgc[k] = p(M0 + k); }
+}
 }  // namespace
 
 void CellBuffer::reserve(std::size_t capacity) {
   if (capacity <= index_.size()) return;
   index_.resize(capacity);
-  arrays_.resize(NUM_SLOTS);
-  for (auto& a : arrays_) a.resize(capacity);
-  auto p = [this](int s) { return arrays_[s].data(); };
-  view_.x = p(X); view_.y = p(Y); view_.z = p(Z); view_.is_fluid = p(IS_FLUID);
-  view_.mass = p(MASS); view_.rho = p(RHO); view_.vx = p(VX); view_.vy = p(VY); view_.vz = p(VZ);
-  view_.p_over_rho2 = p(PR); view_.tensile_r = p(TR); view_.sound_speed = p(C);
-  view_.ax = p(AX); view_.ay = p(AY); view_.az = p(AZ); view_.drho = p(DRHO);
-  view_.ux = p(UX); view_.uy = p(UY); view_.uz = p(UZ);
-  for (int k = 0; k < 6; ++k) { view_.kgc[k] = p(L0 + k); view_.m_kgc[k] = p(M0 + k); }
-  if (!float_arrays_.empty()) {
-    float_arrays_.clear();  // reallocated at the new capacity by the next fill_float
-    float_view_ = ParticleViewF{};
-  }
+  allocate_slots(arrays_, capacity, view_);
+  if (!float_arrays_.empty()) allocate_slots(float_arrays_, capacity, float_view_);  // precision=mixed in use
 }
 
 void CellBuffer::fill_float(unsigned mask) {
-  if (float_arrays_.empty()) {
-    float_arrays_.resize(NUM_SLOTS);
-    for (auto& a : float_arrays_) a.resize(index_.size());
-    auto p = [this](int s) { return float_arrays_[s].data(); };
-    ParticleViewF& v = float_view_;
-    v.x = p(X); v.y = p(Y); v.z = p(Z); v.is_fluid = p(IS_FLUID);
-    v.mass = p(MASS); v.rho = p(RHO); v.vx = p(VX); v.vy = p(VY); v.vz = p(VZ);
-    v.p_over_rho2 = p(PR); v.tensile_r = p(TR); v.sound_speed = p(C);
-    v.ax = p(AX); v.ay = p(AY); v.az = p(AZ); v.drho = p(DRHO);
-    v.ux = p(UX); v.uy = p(UY); v.uz = p(UZ);
-    for (int k = 0; k < 6; ++k) { v.kgc[k] = p(L0 + k); v.m_kgc[k] = p(M0 + k); }
-  }
+  if (float_arrays_.empty()) allocate_slots(float_arrays_, index_.size(), float_view_);
   if (size_ == 0) return;
   auto f = [&](int slot, double origin = 0) {
     to_float(float_arrays_[slot].data(), arrays_[slot].data(), origin, size_);
