@@ -1,6 +1,6 @@
 // Validation against hydrostatics and experiment (docs/PHYSICS.md items 8 and 9).
-// Both run at coarse resolutions so that each takes about a minute on two
-// threads; the tolerances are the ones docs/PHYSICS.md states.
+// Both run at coarse resolutions and small sizes so that each takes about half
+// a minute; the tolerances are the ones docs/PHYSICS.md states.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -102,11 +102,15 @@ std::string precision_name(const ::testing::TestParamInfo<Precision>& info) { re
 //   t = 0.04 s, decaying below 0.05 m/s by t = 0.6 s): max |v| < 0.05 sqrt(gH)
 //   is a steady-state criterion and is checked over the second half, like the
 //   time average. The whole-run maximum is printed.
-// Geometry: docs/PHYSICS.md's 0.4 x 0.2 x 0.3 m for 1.5 s, at dx = 0.02 instead of
-// 0.01 (8168 particles, ~3100 steps, about a minute on two threads); the gauges
-// sit >= 3h = 0.09 m from walls, floor and surface.
+// Geometry: a 0.3 x 0.2 x 0.3 m tank for 1.0 s at dx = 0.02 (6288 particles,
+// ~2050 steps, about 30 s on one thread), smaller and shorter than
+// docs/PHYSICS.md's 0.4 m, 1.5 s, dx = 0.01 to fit the test suite's time. The
+// 1.5 s, 0.4 m run passed with worst gauge error 1.5 % and max |v| 0.051 m/s
+// over its second half; this one gives 0.6 % and 0.061 m/s (limit 0.086):
+// the transient has decayed below the limit well before t = 0.5 s. The
+// gauges sit >= 3h = 0.09 m from walls, floor and surface.
 TEST_P(Validation, HydrostaticTank) {
-  const double dx = 0.02, depth = 0.3, duration = 1.5, lx = 0.4, ly = 0.2;
+  const double dx = 0.02, depth = 0.3, duration = 1.0, lx = 0.3, ly = 0.2;
   CaseGeometry g;
   g.tank = Box{{0, 0, 0}, {lx, ly, depth + 2 * dx}};
   g.water = {Box{{0, 0, 0}, {lx, ly, depth}}};
@@ -118,14 +122,14 @@ TEST_P(Validation, HydrostaticTank) {
   const CubicSpline& kernel = sim.physics().kernel;
   const double h = sim.physics().h(), rho0 = sim.physics().rho0, gravity = sim.physics().gravity;
   const double margin = 3 * h, v_limit = 0.05 * std::sqrt(gravity * depth);
-  // Gauges: three verticals (x = 0.1, 0.2, 0.3; y = 0.1), dx/2 apart in z,
+  // Gauges: two verticals (x = 0.1, 0.2; y = 0.1), dx/2 apart in z,
   // from 3h above the floor to 3h below the initial surface (checked against
   // the measured surface below).
   struct Gauge {
     double x, y, z, p_sum = 0;
   };
   std::vector<Gauge> gauges;
-  for (double x : {0.1, 0.2, 0.3})
+  for (double x : {0.1, 0.2})
     for (double z = margin; z <= depth - margin + 1e-9; z += 0.5 * dx) gauges.push_back({x, 0.5 * ly, z});
   const std::size_t n = ps.size();
   double max_speed_all = 0, max_speed_late = 0, surface_sum = 0, p_particle_min = 1e300, p_particle_max = -1e300;
@@ -186,7 +190,7 @@ TEST_P(Validation, HydrostaticTank) {
     EXPECT_NEAR(p, expected, 0.05 * expected) << "gauge x " << gauge.x << " z " << gauge.z;
     ++checked;
   }
-  EXPECT_GE(checked, 30u);
+  EXPECT_GE(checked, 20u);
   std::printf("hydrostatic tank, precision %s: %zu particles, %ld steps, surface %.4f m (initial %.4f)\n"
               "  max |v| %.4f m/s over the second half, %.4f over the whole run (limit %.4f)\n"
               "  %zu gauges, %ld samples: worst |P/(rho0 g d) - 1| = %.4f (tolerance 0.05)\n"
@@ -243,12 +247,17 @@ void check_martin_moyce(int dx_divisor, Precision precision) {
 }
 }  // namespace
 
-// dx = a/20 by default: a coarse resolution for the test suite's
-// time budget (~1 min on 2 cores; a/40, docs/PHYSICS.md's, is 16 times the work).
+// dx = a/16 by default: a coarse resolution for the test suite's time budget
+// (13 070 particles, 1 292 steps, ~30 s on 2 cores). The work grows as the
+// cube of the divisor (particles in a slab 10 dx wide as its square, steps as
+// the divisor): a/20 is twice the work, a/40 (docs/PHYSICS.md's) 16 times;
+// docs/FINDINGS.md gives the front at each: it moves ahead of the experiment
+// as dx shrinks, and at a/40 one point (+16.9 % at T = 1.212, a = 1.125 in)
+// is outside the 15 %, so this coarse check passes partly by its coarseness.
 // SPHNL_MARTIN_MOYCE_DX_DIVISOR=40 runs docs/PHYSICS.md's resolution.
 TEST_P(Validation, MartinMoyceDamBreakFront) {
   const char* divisor = std::getenv("SPHNL_MARTIN_MOYCE_DX_DIVISOR");
-  const int n = divisor ? std::atoi(divisor) : 20;
+  const int n = divisor ? std::atoi(divisor) : 16;
   ASSERT_GE(n, 10) << "SPHNL_MARTIN_MOYCE_DX_DIVISOR must be an integer >= 10, got '" << divisor << "'";
   check_martin_moyce(n, GetParam());
 }

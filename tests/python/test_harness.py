@@ -621,12 +621,14 @@ class TestFiguresAndReport(TempDirCase):
         with self.assertRaises(F.NoData):
             F.fig08(self.df[self.df["experiment"] == "fig06"], self.tmp)  # no reordered runs
 
-    def test_report_tiny(self):
-        run_dir = self.tmp / "run"
+    def test_report_tiny_and_its_published_copy(self):
+        # One report (the costly part: every figure drawn) serves both checks.
+        run_dir = self.tmp / "results" / "run"
         shutil.copytree(self.run_dir, run_dir)
         (run_dir / "fig09.json").unlink()
+        published = self.tmp / "results" / "REPRODUCTION.md"
         with contextlib.redirect_stdout(io.StringIO()):
-            self.assertEqual(report.main([str(run_dir)]), 0)
+            self.assertEqual(report.main([str(run_dir), "--publish", str(published)]), 0)
         text = (run_dir / "REPRODUCTION.md").read_text(encoding="utf-8")
         self.assertIn("| Figure | Claim | Paper | Measured [95 % interval] | Verdict | Note |", text)
         self.assertIn("tiny run", text)
@@ -639,19 +641,12 @@ class TestFiguresAndReport(TempDirCase):
         self.assertTrue((run_dir / "table1.md").exists())
         self.assertTrue((run_dir / "figures" / "fig06.svg").exists())
         self.assertFalse((run_dir / "figures" / "fig09.png").exists())
-
-    def test_report_publish_rewrites_links(self):
-        run_dir = self.tmp / "results" / "run"
-        shutil.copytree(self.run_dir, run_dir)
-        published = self.tmp / "results" / "REPRODUCTION.md"
-        with contextlib.redirect_stdout(io.StringIO()):
-            self.assertEqual(report.main([str(run_dir), "--publish", str(published)]), 0)
-        own = (run_dir / "REPRODUCTION.md").read_text(encoding="utf-8")
+        # --publish: the same text, its links rewritten to point into the run folder
         copy = published.read_text(encoding="utf-8")
-        self.assertIn("](figures/fig06.png)", own)
+        self.assertIn("](figures/fig06.png)", text)
         self.assertIn("](run/figures/fig06.png)", copy)
         self.assertNotIn("](figures/", copy)
-        self.assertEqual(copy.replace("](run/", "]("), own)
+        self.assertEqual(copy.replace("](run/", "]("), text)
 
     def test_report_corrupt_json(self):
         run_dir = self.tmp / "run"

@@ -274,14 +274,19 @@ class TestClaimsJsonAndReplication(unittest.TestCase):
         cls.tmp = pathlib.Path(tempfile.mkdtemp(prefix="sphnl-stats-"))
         cls.a = run_fake(cls.tmp / "a", 1)
         cls.b = run_fake(cls.tmp / "b", 2)
+        # Each run's report is drawn once, with few replicates for speed; the
+        # tests read its claims.json and REPRODUCTION.md.
+        cls.report_status = []
+        with contextlib.redirect_stdout(io.StringIO()):
+            for run in (cls.a, cls.b):
+                cls.report_status.append(report.main([str(run), "--resamples", "50"]))
 
     @classmethod
     def tearDownClass(cls):
         shutil.rmtree(cls.tmp, ignore_errors=True)
 
     def test_claims_json_schema_on_a_tiny_run(self):
-        with contextlib.redirect_stdout(io.StringIO()):
-            self.assertEqual(report.main([str(self.a), "--resamples", "50"]), 0)
+        self.assertEqual(self.report_status, [0, 0])
         claims = json.loads((self.a / "claims.json").read_text(encoding="utf-8"))
         ids = [c["id"] for e in R.load_experiments(REPO / "experiments").values() for c in e["claims"]]
         self.assertEqual([c["id"] for c in claims], ids)
@@ -300,9 +305,7 @@ class TestClaimsJsonAndReplication(unittest.TestCase):
 
     def test_make_replicate_on_two_tiny_runs(self):
         out = self.tmp / "rep"
-        with contextlib.redirect_stdout(io.StringIO()):  # drawn here with few replicates, for speed
-            for run in (self.a, self.b):
-                self.assertEqual(report.main([str(run), "--resamples", "50"]), 0)
+        self.assertEqual(self.report_status, [0, 0])
         p = subprocess.run(["make", "-s", "replicate", f"A={self.a}", f"B={self.b}", f"OUT={out}"],
                            cwd=REPO, capture_output=True, text=True)
         self.assertEqual(p.returncode, 0, p.stdout + p.stderr)
