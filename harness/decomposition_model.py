@@ -14,6 +14,14 @@ tests/python/test_decomposition_model.py):
   ghost on every other rank owning one of its 26 neighbour cells
   (Decomposition::ghost_destinations).
 
+Work: the pairs a rank evaluates (core/include/sphnl/neighbours/pair_operation.hpp:
+r < 2h, not boundary-boundary), counted from the particles. A rank
+evaluates every pair of two of its own particles once and every pair of
+one of its own with a ghost once (the other rank evaluates it too); pairs
+of two ghosts are skipped. The busiest rank is the one with the most
+pairs, and its compute is the serial step's time in proportion: serial
+seconds x (its pairs) / (the serial run's pairs).
+
 Communication per step, one term per call of the code (core/mpi/ranks_mpi.cpp:
 `exchange` is MPI_Alltoall of the counts + MPI_Alltoallv; `sum` is an
 MPI_Allgather, summed in rank order; `max` an MPI_Allreduce):
@@ -139,10 +147,24 @@ def owner(begins, keys):
     return np.searchsorted(begins[:-1], keys, side="right") - 1
 
 
+def interacting_pairs(x, y, z, types, h):
+    """(m, 2) indices of every pair the serial pair pass evaluates: 0 < r < 2h
+    (r^2 > 1e-18) and not two boundary particles."""
+    from scipy.spatial import cKDTree
+    pts = np.column_stack((x, y, z))
+    ij = cKDTree(pts).query_pairs(2 * h, output_type="ndarray")
+    d2 = ((pts[ij[:, 0]] - pts[ij[:, 1]]) ** 2).sum(axis=1)
+    fluid = np.asarray(types) == FLUID
+    keep = (d2 < (2 * h) ** 2) & (d2 > 1e-18) & (fluid[ij[:, 0]] | fluid[ij[:, 1]])
+    return ij[keep]
+
+
 def decompose(x, y, z, types, h, cell, ranks_list, order="sort_x"):
     """{P: counts} of the dam break's particles cut into P ranks along the
     cell order `order` (sort_x or hilbert): owned particles and weights,
-    ghosts received and the ranks they come from."""
+    ghosts received and the ranks they come from, and the pairs each rank
+    evaluates (`pairs_own`: both particles its own; `pairs_cross`: one its
+    own, one a ghost)."""
     if order not in ("sort_x", "hilbert"):
         raise ModelError(f"cell order {order!r}: the model has sort_x and hilbert")
     lo, n = grid_of(x, y, z, h, cell)
@@ -159,6 +181,13 @@ def decompose(x, y, z, types, h, cell, ranks_list, order="sort_x"):
     cells = key_of(cells_x)
     cz, rem = np.divmod(cells_x, n[0] * n[1])
     cy, cx = np.divmod(rem, n[0])
+    # the interacting pairs as counts per pair of occupied cells (index into cells_x)
+    ij = interacting_pairs(x, y, z, types, h)
+    cell_of = np.searchsorted(cells_x, sortx)
+    ca, cb = cell_of[ij[:, 0]], cell_of[ij[:, 1]]
+    lo_c, hi_c = np.minimum(ca, cb), np.maximum(ca, cb)
+    cell_pairs, pair_counts = np.unique(lo_c * len(cells_x) + hi_c, return_counts=True)
+    pa, pb = np.divmod(cell_pairs, len(cells_x))
     out = {}
     for ranks in ranks_list:
         if ranks > nkeys:
@@ -186,18 +215,41 @@ def decompose(x, y, z, types, h, cell, ranks_list, order="sort_x"):
         owned = np.bincount(home, weights=per_cell, minlength=ranks).astype(np.int64)
         rank_w = np.bincount(home, weights=weights[cells], minlength=ranks)
         ghost_w = np.bincount(dest, weights=weights[cells][cell_idx], minlength=ranks)
+        ra, rb = home[pa], home[pb]
+        same = ra == rb
+        pairs_own = np.bincount(ra[same], weights=pair_counts[same], minlength=ranks).astype(np.int64)
+        cross = ~same
+        pairs_cross = (np.bincount(ra[cross], weights=pair_counts[cross], minlength=ranks)
+                       + np.bincount(rb[cross], weights=pair_counts[cross], minlength=ranks)).astype(np.int64)
         out[ranks] = {"owned": owned, "ghosts": ghosts, "partners": partners, "weight": rank_w,
-                      "ghost_weight": ghost_w, "cells": nkeys, "occupied_cells": len(cells)}
+                      "ghost_weight": ghost_w, "cells": nkeys, "occupied_cells": len(cells),
+                      "pairs_own": pairs_own, "pairs_cross": pairs_cross, "pairs_serial": int(len(ij))}
+    return out
+
+
+def pareto_frontier(share, duplicated):
+    """[[share, duplicated]] of the ranks no other rank exceeds in both: the
+    busiest rank after scaling the two by any positive factors is one of
+    them (the surface rule of `extrapolate`)."""
+    out = []
+    for a, b in sorted(zip(share.tolist(), duplicated.tolist()), key=lambda t: (-t[0], -t[1])):
+        if not out or b > out[-1][1]:
+            out.append([float(a), float(b)])
     return out
 
 
 def summary_row(n_particles, ranks, c):
     """The counts of one (N, P) as the numbers the projection needs."""
     owned, ghosts, w = c["owned"], c["ghosts"], c["weight"]
-    work = w + c["ghost_weight"]  # a ghost's pairs are computed as an owned particle's
-    busiest = int(np.argmax(work))
-    return {"work_owned": float(w[busiest]), "work_ghost": float(c["ghost_weight"][busiest]),
-            "total_weight": float(w.sum()),"N": int(n_particles), "P": int(ranks), "owned_max": int(owned.max()), "owned_min": int(owned.min()),
+    pairs = c["pairs_own"] + c["pairs_cross"]
+    busiest = int(np.argmax(pairs))
+    return {"pairs_own": int(c["pairs_own"][busiest]), "pairs_cross": int(c["pairs_cross"][busiest]),
+            # per rank: its share of the serial pairs (own + cross / 2) and the
+            # duplicated half of its cross pairs, on the frontier
+            "pairs_frontier": pareto_frontier(c["pairs_own"] + c["pairs_cross"] / 2, c["pairs_cross"] / 2),
+            "pairs_serial": int(c["pairs_serial"]), "pairs_all_ranks": int(pairs.sum()),
+            "total_weight": float(w.sum()), "N": int(n_particles), "P": int(ranks),
+            "owned_max": int(owned.max()), "owned_min": int(owned.min()),
             "ghosts_max": int(ghosts.max()), "ghosts_mean": float(ghosts.mean()),
             "ghosts_total": int(ghosts.sum()), "partners_max": int(c["partners"].max()),
             "imbalance": float(w.max() / w.mean() - 1.0) if w.mean() > 0 else 0.0,
@@ -224,9 +276,9 @@ SIMILAR_P_EXPONENT = {"hilbert": 1.0, "sort_x": 1.0 / 3.0}
 
 
 def _ratios(row):
-    """The busiest rank's work and counts in units of the mean share (scale-free)."""
-    share_w, share_n = row["total_weight"] / row["P"], row["N"] / row["P"]
-    return {"work_owned": row["work_owned"] / share_w, "work_ghost": row["work_ghost"] / share_w,
+    """The busiest rank's pairs and counts in units of the mean share (scale-free)."""
+    share_pairs, share_n = row["pairs_serial"] / row["P"], row["N"] / row["P"]
+    return {"pairs_own": row["pairs_own"] / share_pairs, "pairs_cross": row["pairs_cross"] / share_pairs,
             "owned_max": row["owned_max"] / share_n, "ghosts_max": row["ghosts_max"] / share_n}
 
 
@@ -235,13 +287,16 @@ def extrapolate(rows, n_target, ranks, order="sort_x"):
     the largest N counted (N0) by one of two documented rules.
     Similar ranges: refining the case at fixed geometry (h ∝ dx, N ∝ dx^-3)
     with P' = P (N0 / N)^k ranks at N0 (k = SIMILAR_P_EXPONENT of the order)
-    gives ranges of the same shape in cells, so the busiest rank's owned and
-    ghost work in units of the mean share are those counted at (N0, P'),
-    interpolated in log P' between the counted P. Where P' < 2 (ranks hold
-    more cells than the counted case has), ranks are in the thin-surface
-    regime and the fixed-P rule applies: owned ∝ N, ghosts ∝ N^(2/3) (a
-    layer of cells one cell thick) from the largest N counted at that P.
-    The partners are those counted at the nearest P'."""
+    gives ranges of the same shape in cells, so the busiest rank's own and
+    cross pairs and its counts in units of the mean share are those counted
+    at (N0, P'), interpolated in log P' between the counted P. Where P' < 2
+    (ranks hold more cells than the counted case has), ranks are in the
+    thin-surface regime and the fixed-P rule applies, from the largest N
+    counted at that P: owned particles and a rank's share of the serial
+    pairs (own + cross / 2) ∝ N, ghosts and cross pairs ∝ N^(2/3) (a layer
+    of cells one cell thick), so the serial pairs scale as N and no rank's
+    pairs fall below the mean share. The partners are those counted at the
+    nearest P'."""
     here = [r for r in rows if r["P"] == ranks]
     exact = [r for r in here if r["N"] == n_target]
     if exact:
@@ -251,16 +306,16 @@ def extrapolate(rows, n_target, ranks, order="sort_x"):
     n0 = max(r["N"] for r in rows)
     base = sorted((r for r in rows if r["N"] == n0), key=lambda r: r["P"])
     p_sim = ranks * (n0 / n_target) ** SIMILAR_P_EXPONENT[order]
-    total_w = base[0]["total_weight"] * n_target / n0
+    pairs_serial = base[0]["pairs_serial"] * n_target / n0
     if p_sim >= 2 and p_sim <= base[-1]["P"]:
         ps = np.log([r["P"] for r in base])
         rat = {k: float(np.interp(math.log(p_sim), ps, [_ratios(r)[k] for r in base]))
-               for k in ("work_owned", "work_ghost", "owned_max", "ghosts_max")}
+               for k in ("pairs_own", "pairs_cross", "owned_max", "ghosts_max")}
         near = min(base, key=lambda r: abs(math.log(r["P"] / p_sim)))
-        share_w, share_n = total_w / ranks, n_target / ranks
+        share_pairs, share_n = pairs_serial / ranks, n_target / ranks
         g = rat["ghosts_max"] * share_n
-        return {**near, "N": int(n_target), "P": ranks, "total_weight": total_w,
-                "work_owned": rat["work_owned"] * share_w, "work_ghost": rat["work_ghost"] * share_w,
+        return {**near, "N": int(n_target), "P": ranks, "pairs_serial": pairs_serial,
+                "pairs_own": rat["pairs_own"] * share_pairs, "pairs_cross": rat["pairs_cross"] * share_pairs,
                 "owned_max": rat["owned_max"] * share_n, "ghosts_max": g, "ghost_bytes_build_max": g * GHOST_DOUBLES * 8,
                 "similar_p": p_sim, "extrapolated": True}
     if not here:
@@ -268,8 +323,14 @@ def extrapolate(rows, n_target, ranks, order="sort_x"):
     b = max(here, key=lambda r: r["N"])
     s = n_target / b["N"]
     g = s ** GHOST_EXPONENT
+    # A rank's share of the serial pairs (own + cross / 2) grows as s, the
+    # duplicated half of its cross pairs as g (so the serial pairs grow as
+    # s); the busiest rank at n_target is one of the frontier's.
+    frontier = b.get("pairs_frontier") or [[b["pairs_own"] + b["pairs_cross"] / 2, b["pairs_cross"] / 2]]
+    share, dup = max(frontier, key=lambda sd: sd[0] * s + sd[1] * g)
     return {**b, "N": int(n_target), "owned_max": b["owned_max"] * s, "ghosts_max": b["ghosts_max"] * g,
-            "work_owned": b["work_owned"] * s, "work_ghost": b["work_ghost"] * g, "total_weight": b["total_weight"] * s,
+            "pairs_own": share * s - dup * g, "pairs_cross": 2 * dup * g,
+            "pairs_serial": b["pairs_serial"] * s,
             "ghost_bytes_build_max": b["ghosts_max"] * g * GHOST_DOUBLES * 8, "similar_p": p_sim, "extrapolated": True}
 
 
@@ -296,18 +357,19 @@ def allgather_s(ranks, nbytes_each, latency, bandwidth):
 
 def step_terms(row, s_per_particle_step, lst="cll", latency=LATENCY_S, bandwidth=BANDWIDTH_BPS,
                exchange="alltoall"):
-    """Seconds per step of the busiest rank, by term. Compute: the work of its
-    owned particles plus its ghosts in the balancing weights (fluid 1,
-    boundary 1/4; pairs across a boundary are computed on both sides and
-    ghost-ghost pairs too, docs/DESIGN.md, so a ghost weighs as an owned
-    particle), at the measured serial cost: s_per_particle_step x N over
-    the total weight per unit of weight.
+    """Seconds per step of the busiest rank, by term. Compute: the measured
+    serial step (s_per_particle_step x N) times the rank's share of the
+    serial run's pairs: its own pairs plus the pairs with a ghost, which
+    both ranks evaluate (pairs of two ghosts are skipped, docs/DESIGN.md).
+    The per-particle parts of the step (integration, the cell sort) are
+    spread in the same proportion: an approximation that holds while the
+    pair pass dominates the step.
     exchange="neighbour": the exchanges as MPI_Neighbor_alltoallv over the
     ranks that share a ghost layer (`partners_max` messages instead of P - 1,
     no count all-to-all: the counts are known from the send lists)."""
     p = row["P"]
-    per_weight = s_per_particle_step * row["N"] / row["total_weight"]
-    terms = {"compute": per_weight * (row["work_owned"] + (row["work_ghost"] if p > 1 else 0))}
+    per_pair = s_per_particle_step * row["N"] / row["pairs_serial"]
+    terms = {"compute": per_pair * (row["pairs_own"] + (row["pairs_cross"] if p > 1 else 0))}
     if p == 1:
         return {**terms, "exchange_latency": 0.0, "exchange_bytes": 0.0, "reductions": 0.0, "rank_vector_sum": 0.0}
     doubles = GHOST_DOUBLES if lst == "cll" else REFRESH_DOUBLES

@@ -10,7 +10,8 @@ parallel efficiency under a stated network model.
         [--cost-from SUMMARY.json | --s-per-particle-step S]
 
 The case at each `--particles` is made by `sphnl run` (one step; its t = 0
-snapshot is the distribution counted). The compute cost per particle-step is
+snapshot is the distribution counted: owned particles, ghosts and the pairs
+each rank evaluates). The compute cost per particle-step is
 the measured serial one: `--cost-from` a summary.json of a serial `sphnl run`
 (seconds_per_step / n_total; its interactions give the cost per pair), or
 given, or a results folder (`results/full`: the serial CLL step of fig12
@@ -162,9 +163,13 @@ def main(argv=None):
     targets = [int(float(v)) for v in args.targets.split(",")]
     counts_path = args.out / "decomposition_counts.json"
     try:
+        counts = None
         if counts_path.exists() and not args.recount:
             counts = json.loads(counts_path.read_text(encoding="utf-8"))["rows"]
-        else:
+            if not all("pairs_serial" in r for r in counts):  # counted before the model counted pairs
+                print(f"mpi_projection: {counts_path} has no pair counts; counting again", file=sys.stderr)
+                counts = None
+        if counts is None:
             counts = count(args.sphnl, particles, ranks)
             write_atomic(counts_path, json.dumps({"cell": "2h (CLL)", "state": "t = 0",
                                                    "rows": counts}, indent=1) + "\n")

@@ -6,8 +6,10 @@ its own (`python -m unittest -v <module>.<class>`, tests/python on the
 path as discover puts it), so a class that draws reports or waits on the
 real binaries no longer leaves the other core idle. Classes run longest
 first: by the seconds each took last time (kept in
-$SPHNL_BUILD_DIR/python_test_seconds.json), else those of modules that
-start the real binaries first. Each class's output is printed whole when
+$SPHNL_BUILD_DIR/python_test_seconds.json), else by those in
+tests/python/class_seconds.json (committed, so that a fresh build starts
+the long classes first too; refresh it with `--save-seconds`), else those
+of modules that start the real binaries first. Each class's output is printed whole when
 it ends; the last line is the total:
 
     N passed, N failed, N skipped
@@ -28,6 +30,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 TESTS = ROOT / "tests" / "python"
 TIMES_NAME = "python_test_seconds.json"
+SEED_TIMES = TESTS / "class_seconds.json"
 
 
 def test_classes(pattern):
@@ -76,6 +79,21 @@ def longest_first(units, times):
     return sorted(units, key=key)
 
 
+def read_times(path):
+    """{unit: seconds} from `path`; {} when it is missing or unreadable (the
+    times only order the classes)."""
+    try:
+        return json.loads(path.read_text(encoding="utf-8")) if path.exists() else {}
+    except (OSError, ValueError):
+        return {}
+
+
+def write_times(path, times):
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(times, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+    tmp.replace(path)
+
+
 def counts(output):
     """(run, failed, skipped) from unittest's closing lines."""
     ran = re.search(r"^Ran (\d+) tests?", output, re.M)
@@ -97,6 +115,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="classes at a time (default: the cores)")
     ap.add_argument("-k", dest="pattern", default="", help="only the modules whose file name matches this regex")
+    ap.add_argument("--save-seconds", action="store_true",
+                    help=f"also write this run's seconds per class to {SEED_TIMES.relative_to(ROOT)}")
     args = ap.parse_args(argv)
     if args.jobs < 1:
         ap.error(f"--jobs {args.jobs}: at least 1")
@@ -106,10 +126,7 @@ def main(argv=None):
         return 2
     build = os.environ.get("SPHNL_BUILD_DIR")
     times_path = Path(build) / TIMES_NAME if build and Path(build).is_dir() else None
-    try:
-        times = json.loads(times_path.read_text(encoding="utf-8")) if times_path and times_path.exists() else {}
-    except (OSError, ValueError):
-        times = {}
+    times = {**read_times(SEED_TIMES), **(read_times(times_path) if times_path else {})}
     t0 = time.monotonic()
     total = failed = skipped = 0
     bad = []
@@ -125,10 +142,8 @@ def main(argv=None):
                 bad.append(unit)
             print(f"===== {unit}: {run} tests, {fail} failed, {skip} skipped, {seconds:.1f} s =====")
             print(output.rstrip(), flush=True)
-    if times_path:
-        tmp = times_path.with_suffix(".tmp")
-        tmp.write_text(json.dumps(times, indent=1, sort_keys=True) + "\n", encoding="utf-8")
-        tmp.replace(times_path)
+    for path in filter(None, [times_path, SEED_TIMES if args.save_seconds else None]):
+        write_times(path, {u: t for u, t in times.items() if u in names} if path == SEED_TIMES else times)
     print(f"\nPython tests: {len(names)} test classes, {args.jobs} at a time, {time.monotonic() - t0:.1f} s"
           + (f"; failed: {', '.join(bad)}" if bad else ""))
     print(f"{total - failed - skipped} passed, {failed} failed, {skipped} skipped")

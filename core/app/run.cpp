@@ -210,7 +210,8 @@ json parallel_summary(const Simulation& sim, Communicator& comm) {
   double fluid = 0;
   for (std::size_t i = 0; i < sim.owned(); ++i) fluid += sim.particles().type[i] == ParticleType::fluid;
   // Counts summed over ranks (a pair across a rank boundary counts on both
-  // sides, ghost-ghost pairs too); phase times as the slowest rank's.
+  // sides; pairs of two ghosts are never evaluated); phase times as the
+  // slowest rank's.
   double sums[] = {static_cast<double>(st.candidates), static_cast<double>(st.interactions),
                    static_cast<double>(st.list_pairs), static_cast<double>(st.kgc_fallbacks),
                    static_cast<double>(sim.neighbour_bytes()), static_cast<double>(d.bytes_sent())};

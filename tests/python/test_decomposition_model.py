@@ -1,6 +1,6 @@
 """harness/decomposition_model.py: the code's decomposition rules on synthetic
-weights, the network terms, and (with SPHNL_BUILD_DIR and mpirun) the ghost
-and owned counts of a real `mpirun -np 3 sphnl run` reproduced exactly."""
+weights, the network terms, and (with SPHNL_BUILD_DIR and mpirun) the ghost,
+owned and pair counts of a real `mpirun -np 3 sphnl run` reproduced exactly."""
 import json
 import math
 import os
@@ -50,20 +50,43 @@ class Partition(unittest.TestCase):
         self.assertEqual(list(counts[2]["ghosts"]), [16, 16])
         self.assertEqual(list(counts[2]["partners"]), [1, 1])
 
+    def test_pairs_within_a_rank_once_across_ranks_on_both(self):
+        # a 4 x 4 x 4 lattice of spacing 1 with 2h = 1.1: face neighbours only,
+        # 4 z-planes x 24 in-plane pairs + 3 x 16 between planes = 144. Cells of
+        # 2h from x = -2h: planes z = 0, 1 share a cell, so two ranks own
+        # z = 0, 1 and z = 2, 3 and the 16 pairs between z = 1 and 2 are on both.
+        g = np.arange(4.0)
+        x, y, z = (a.ravel() for a in np.meshgrid(g, g, g, indexing="ij"))
+        types = np.array(["fluid"] * x.size)
+        h = 0.55
+        c = D.decompose(x, y, z, types, h, 2 * h, [1, 2])
+        self.assertEqual(c[1]["pairs_serial"], 144)
+        self.assertEqual(list(c[1]["pairs_own"]), [144])
+        self.assertEqual(list(c[2]["owned"]), [32, 32])
+        self.assertEqual(list(c[2]["pairs_own"]), [64, 64])
+        self.assertEqual(list(c[2]["pairs_cross"]), [16, 16])
+        row = D.summary_row(64, 2, c[2])
+        self.assertEqual((row["pairs_own"], row["pairs_cross"], row["pairs_all_ranks"]), (64, 16, 160))
+        # two boundary particles never form a pair: one fluid particle left, at a corner (3 neighbours)
+        types = np.array(["boundary"] * x.size)
+        types[0] = "fluid"
+        self.assertEqual(D.decompose(x, y, z, types, h, 2 * h, [1])[1]["pairs_serial"], 3)
+
 
 class Terms(unittest.TestCase):
-    ROW = {"P": 64, "N": 64000, "total_weight": 64000.0, "owned_max": 1000, "ghosts_max": 500,
-           "work_owned": 1000.0, "work_ghost": 500.0}
+    ROW = {"P": 64, "N": 64000, "pairs_serial": 2_000_000, "owned_max": 1000, "ghosts_max": 500,
+           "pairs_own": 30_000, "pairs_cross": 10_000}
 
     def test_one_rank_is_compute_only(self):
-        t = D.step_terms({"P": 1, "N": 1000, "total_weight": 400.0, "work_owned": 400.0, "work_ghost": 0.0,
+        t = D.step_terms({"P": 1, "N": 1000, "pairs_serial": 20_000, "pairs_own": 20_000, "pairs_cross": 0,
                           "owned_max": 1000, "ghosts_max": 0}, 1e-6)
         self.assertEqual(sum(t.values()), t["compute"])
-        self.assertAlmostEqual(t["compute"], 1e-3)  # the serial step, whatever the weights
+        self.assertAlmostEqual(t["compute"], 1e-3)  # the serial step
 
     def test_terms_follow_the_calls_of_the_code(self):
         t = D.step_terms(self.ROW, 1e-6, latency=1e-6, bandwidth=1e9)
-        self.assertAlmostEqual(t["compute"], 1.5e-3)  # a ghost costs an owned particle
+        # the serial step (64 ms) times the rank's share of the serial pairs, its cross pairs included
+        self.assertAlmostEqual(t["compute"], 64e-3 * 40_000 / 2_000_000)
         # 2 exchanges x (alltoall of the counts + alltoallv): P - 1 messages each, 4 B a count
         self.assertAlmostEqual(t["exchange_latency"], 2 * (2 * 63 * 1e-6 + 4 * 63 / 1e9))
         self.assertAlmostEqual(t["exchange_bytes"], 500 * 80 / 1e9)
@@ -77,7 +100,7 @@ class Terms(unittest.TestCase):
     def test_extrapolation_in_n_by_similar_ranges_or_the_surface_rule(self):
         def row(n, owned, ghosts):
             return {"N": n, "P": 4, "owned_max": owned, "ghosts_max": ghosts, "ghost_bytes_build_max": 80 * ghosts,
-                    "work_owned": float(owned), "work_ghost": float(ghosts), "total_weight": 4.0 * owned}
+                    "pairs_own": 20.0 * owned, "pairs_cross": 10.0 * ghosts, "pairs_serial": 80.0 * owned}
         rows = [row(1000, 250, 100), row(8000, 2000, 400)]
         self.assertAlmostEqual(D.fit_exponent(rows, "ghosts_max", 4), 2 / 3)
         # P' = 4 x (8000 / 64000) < 2 for Hilbert: the thin-surface rule, ghosts ∝ N^(2/3) at P = 4
@@ -85,16 +108,26 @@ class Terms(unittest.TestCase):
         self.assertTrue(e["extrapolated"])
         self.assertAlmostEqual(e["ghosts_max"], 1600)
         self.assertAlmostEqual(e["owned_max"], 16000)
-        self.assertAlmostEqual(e["work_ghost"], 1600)
+        # the rank's share of the serial pairs (40 000 + 4 000 / 2) grows 8x, its
+        # duplicated half of the cross pairs (2 000) 4x
+        self.assertAlmostEqual(e["pairs_cross"], 16000)
+        self.assertAlmostEqual(e["pairs_own"], 42000 * 8 - 2000 * 4)
+        # the busiest rank after scaling can be another than the busiest counted
+        b = dict(row(8000, 2000, 400), pairs_own=40000, pairs_cross=4000,
+                 pairs_frontier=[[43000.0, 500.0], [42000.0, 2000.0]])   # the first is busier at 8 000
+        e = D.extrapolate([b], 8000 * 1000, 4, "hilbert")
+        self.assertAlmostEqual(e["pairs_cross"], 2 * 500 * 100)   # g = 1000^(2/3) = 100
+        self.assertAlmostEqual(e["pairs_own"] + e["pairs_cross"], 43000 * 1000 + 500 * 100)
         # similar ranges: P = 64 at 8 x the particles has the shape of P' = 8 at 8 000 (Hilbert: C ∝ N / P)
         rows += [dict(row(8000, 1000, 300), P=8), dict(row(8000, 500, 250), P=16)]
         for r in rows[2:]:
-            r["total_weight"] = 4.0 * 2000
+            r["pairs_serial"] = 80.0 * 2000
         e = D.extrapolate(rows, 64000, 64, "hilbert")
         self.assertAlmostEqual(e["similar_p"], 8)
         share = 64000 / 64
         self.assertAlmostEqual(e["ghosts_max"], 300 / (8000 / 8) * share)
-        self.assertAlmostEqual(e["work_ghost"] / (4.0 * 2000 * 8 / 64), 300 / (4.0 * 2000 / 8))
+        # cross pairs in units of the mean share of the serial pairs, as at P' = 8
+        self.assertAlmostEqual(e["pairs_cross"] / (80.0 * 2000 * 8 / 64), 3000 / (80.0 * 2000 / 8))
         proj = D.project(rows[:2], [8000, 64000], [4], 1e-6)
         self.assertEqual([p["extrapolated"] for p in proj], [False, True])
         self.assertTrue(all(0 < p["efficiency"] < 1 for p in proj))
@@ -124,6 +157,16 @@ class AgainstTheCode(unittest.TestCase):
                 self.assertEqual({"min": int(c["owned"].min()), "max": int(c["owned"].max())}, s["particles_per_rank"])
                 # nothing migrates at t = 0: the bytes of the step are the ghosts' 10 doubles each
                 self.assertEqual(s["bytes_sent_per_step"], c["ghosts"].sum() * D.GHOST_DOUBLES * 8)
+                # the pairs the three ranks evaluated in their one step, summed: own pairs once,
+                # pairs across a range boundary on both ranks, no pair of two ghosts
+                self.assertEqual((c["pairs_own"] + c["pairs_cross"]).sum(), s["neighbour_stats"]["interactions"])
+                serial = subprocess.run([sphnl, "run", "--quiet", "--out", f"{tmp}/serial", "--set", "particles=3000",
+                                         "--set", "steps=1", "--set", "output_interval=0", "--set", "progress=false",
+                                         "--set", f"cell_order={order}"],
+                                        capture_output=True, text=True, timeout=120)
+                self.assertEqual(serial.returncode, 0, serial.stderr)
+                s1 = json.loads((Path(tmp) / "serial" / "summary.json").read_text())
+                self.assertEqual(c["pairs_serial"], s1["neighbour_stats"]["interactions"])
 
 if __name__ == "__main__":
     unittest.main()
