@@ -60,7 +60,8 @@ double interpolate(const std::vector<Point>& s, double t) {
   return a.z + (b.z - a.z) * (t - a.t) / (b.t - a.t);
 }
 
-Simulation make_sim(const CaseGeometry& g, double dx, int threads, Precision precision, double alpha = RunConfig{}.viscosity_alpha) {
+Simulation make_sim(const CaseGeometry& g, double dx, int threads, Precision precision,
+                    double alpha = RunConfig{}.viscosity_alpha) {
   RunConfig c;
   c.progress = false;
   c.threads = threads;
