@@ -159,14 +159,22 @@ def interacting_pairs(x, y, z, types, h):
     return ij[keep]
 
 
-def decompose(x, y, z, types, h, cell, ranks_list, order="sort_x"):
+BALANCES = ("weight", "pairs")
+
+
+def decompose(x, y, z, types, h, cell, ranks_list, order="sort_x", balance="weight", pairs=None):
     """{P: counts} of the dam break's particles cut into P ranks along the
     cell order `order` (sort_x or hilbert): owned particles and weights,
     ghosts received and the ranks they come from, and the pairs each rank
     evaluates (`pairs_own`: both particles its own; `pairs_cross`: one its
-    own, one a ghost)."""
+    own, one a ghost). `balance`: the ranges cut by the code's weights
+    (fluid 1, boundary 1/4: "weight") or by each particle's share of the
+    serial pairs (half its pairs: "pairs", what the code would need its pair
+    counts for). `pairs`: interacting_pairs of these particles, if made."""
     if order not in ("sort_x", "hilbert"):
         raise ModelError(f"cell order {order!r}: the model has sort_x and hilbert")
+    if balance not in BALANCES:
+        raise ModelError(f"balance {balance!r}: the model has {', '.join(BALANCES)}")
     lo, n = grid_of(x, y, z, h, cell)
     sortx = sort_x_keys(x, y, z, lo, n, cell)
     to_key = hilbert_rank(n) if order == "hilbert" else None
@@ -175,14 +183,17 @@ def decompose(x, y, z, types, h, cell, ranks_list, order="sort_x"):
         return k if to_key is None else to_key[k]
     keys = key_of(sortx)
     nkeys = int(n[0] * n[1] * n[2])
-    w = np.where(types == FLUID, WEIGHT[FLUID], WEIGHT[BOUNDARY])
+    ij = interacting_pairs(x, y, z, types, h) if pairs is None else pairs
+    if balance == "weight":
+        w = np.where(types == FLUID, WEIGHT[FLUID], WEIGHT[BOUNDARY])
+    else:
+        w = 0.5 * np.bincount(ij.ravel(), minlength=len(keys))
     weights = np.bincount(keys, weights=w, minlength=nkeys)
     cells_x, per_cell = np.unique(sortx, return_counts=True)  # occupied cells, by SortX key
     cells = key_of(cells_x)
     cz, rem = np.divmod(cells_x, n[0] * n[1])
     cy, cx = np.divmod(rem, n[0])
     # the interacting pairs as counts per pair of occupied cells (index into cells_x)
-    ij = interacting_pairs(x, y, z, types, h)
     cell_of = np.searchsorted(cells_x, sortx)
     ca, cb = cell_of[ij[:, 0]], cell_of[ij[:, 1]]
     lo_c, hi_c = np.minimum(ca, cb), np.maximum(ca, cb)

@@ -11,7 +11,8 @@ parallel efficiency under a stated network model.
 
 The case at each `--particles` is made by `sphnl run` (one step; its t = 0
 snapshot is the distribution counted: owned particles, ghosts and the pairs
-each rank evaluates). The compute cost per particle-step is
+each rank evaluates, with the ranges cut by the code's weights and, as a
+what-if, by pairs). The compute cost per particle-step is
 the measured serial one: `--cost-from` a summary.json of a serial `sphnl run`
 (seconds_per_step / n_total; its interactions give the cost per pair), or
 given, or a results folder (`results/full`: the serial CLL step of fig12
@@ -31,6 +32,8 @@ import matplotlib  # noqa: E402
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+
+plt.rcParams["svg.hashsalt"] = "sphnl"  # the same SVG from the same numbers
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
@@ -62,9 +65,12 @@ def count(sphnl, particles_list, ranks_list):
     rows = []
     for particles in particles_list:
         x, y, z, types, h, n = case_distribution(sphnl, particles)
+        pairs = D.interacting_pairs(x, y, z, types, h)
         for order in ORDERS:
-            counts = D.decompose(x, y, z, types, h, 2 * h, ranks_list, order=order)
-            rows += [dict(D.summary_row(n, p, c), order=order) for p, c in counts.items()]
+            for balance in D.BALANCES:
+                counts = D.decompose(x, y, z, types, h, 2 * h, ranks_list, order=order, balance=balance,
+                                     pairs=pairs)
+                rows += [dict(D.summary_row(n, p, c), order=order, balance=balance) for p, c in counts.items()]
         print(f"mpi_projection: N = {n}: counted P = {min(counts)}..{max(counts)}", file=sys.stderr)
     return rows
 
@@ -95,6 +101,7 @@ def projection_figure(counts, proj, out):
     projected parallel efficiency and communication share against P."""
     fig, axes = plt.subplots(1, 3, figsize=(19.2, 4.8))
     c = pd.DataFrame(counts)
+    c = c[c["balance"] == "weight"]  # the ranges the code cuts
     big = c[(c["N"] == c["N"].max()) & (c["P"] > 1)]  # one rank has no ghosts
     for order in ORDERS:
         part = big[big["order"] == order].sort_values("P")
@@ -131,15 +138,17 @@ def projection_figure(counts, proj, out):
 
 def table(proj, ps=(1, 16, 128, 1024)):
     lines = ["| order | N | P | compute (ms) | exchanges: latency (ms) | exchanges: bytes (ms) | reductions (ms) "
-             "| P-vector sum (ms) | step (ms) | communication | efficiency | efficiency, neighbour exchange |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| P-vector sum (ms) | step (ms) | communication | efficiency | efficiency, neighbour exchange "
+             "| efficiency, ranges balanced by pairs |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in proj:
         if r["P"] in ps:
             lines.append(f"| {r['order']} | {r['N']:.3g}{' *' if r['extrapolated'] else ''} | {r['P']} | {1e3 * r['compute']:.3g} "
                          f"| {1e3 * r['exchange_latency']:.3g} | {1e3 * r['exchange_bytes']:.3g} "
                          f"| {1e3 * r['reductions']:.3g} | {1e3 * r['rank_vector_sum']:.3g} | {1e3 * r['step_s']:.3g} "
                          f"| {100 * r['communication_share']:.1f} % | {100 * r['efficiency']:.1f} % "
-                         f"| {100 * r['efficiency_neighbour_exchange']:.1f} % |")
+                         f"| {100 * r['efficiency_neighbour_exchange']:.1f} % "
+                         f"| {100 * r['efficiency_pair_balance']:.1f} % |")
     return "\n".join(lines) + "\n\n`*`: N extrapolated from the largest N counted (harness/decomposition_model.py).\n"
 
 
@@ -166,8 +175,9 @@ def main(argv=None):
         counts = None
         if counts_path.exists() and not args.recount:
             counts = json.loads(counts_path.read_text(encoding="utf-8"))["rows"]
-            if not all("pairs_serial" in r for r in counts):  # counted before the model counted pairs
-                print(f"mpi_projection: {counts_path} has no pair counts; counting again", file=sys.stderr)
+            if not all("pairs_serial" in r and "balance" in r for r in counts):  # an older model's counts
+                print(f"mpi_projection: {counts_path} has no pair counts or balances; counting again",
+                      file=sys.stderr)
                 counts = None
         if counts is None:
             counts = count(args.sphnl, particles, ranks)
@@ -180,12 +190,14 @@ def main(argv=None):
     n_list = sorted(set(targets + [r["N"] for r in counts]))
     proj, alphas = [], {}
     for order in ORDERS:
-        rows = [r for r in counts if r.get("order", "sort_x") == order]
-        base = D.project(rows, n_list, ranks, per_particle, latency=args.latency, bandwidth=args.bandwidth,
-                         order=order)
-        nbr = D.project(rows, n_list, ranks, per_particle, latency=args.latency, bandwidth=args.bandwidth,
-                        exchange="neighbour", order=order)
-        proj += [dict(r, order=order, efficiency_neighbour_exchange=q["efficiency"]) for r, q in zip(base, nbr)]
+        rows = [r for r in counts if r["order"] == order and r["balance"] == "weight"]
+        by_pairs = [r for r in counts if r["order"] == order and r["balance"] == "pairs"]
+        kw = dict(latency=args.latency, bandwidth=args.bandwidth, order=order)
+        base = D.project(rows, n_list, ranks, per_particle, **kw)
+        nbr = D.project(rows, n_list, ranks, per_particle, exchange="neighbour", **kw)
+        pb = D.project(by_pairs, n_list, ranks, per_particle, **kw)
+        proj += [dict(r, order=order, efficiency_neighbour_exchange=q["efficiency"],
+                      efficiency_pair_balance=b["efficiency"]) for r, q, b in zip(base, nbr, pb)]
         alphas[order] = {str(p): D.fit_exponent(rows, "ghosts_max", p) for p in ranks}
     meta = {"latency_s": args.latency, "bandwidth_Bps": args.bandwidth, "s_per_particle_step": per_particle,
             "s_per_pair": per_pair, "cost_source": source,

@@ -1,6 +1,8 @@
 """harness/decomposition_model.py: the code's decomposition rules on synthetic
 weights, the network terms, and (with SPHNL_BUILD_DIR and mpirun) the ghost,
 owned and pair counts of a real `mpirun -np 3 sphnl run` reproduced exactly."""
+import contextlib
+import io
 import json
 import math
 import os
@@ -72,6 +74,29 @@ class Partition(unittest.TestCase):
         types[0] = "fluid"
         self.assertEqual(D.decompose(x, y, z, types, h, 2 * h, [1])[1]["pairs_serial"], 3)
 
+    def test_ranges_balanced_by_pairs_even_out_a_density_gradient(self):
+        # density growing with z (the SortX ranges are z-slabs): equal particle
+        # counts give the dense slab more pairs; cutting by pairs moves particles
+        # to the sparse slab and evens the pairs out
+        rng = np.random.default_rng(1)
+        n, h = 20000, 0.02
+        x, y, z = 0.3 * rng.random(n), 0.3 * rng.random(n), np.sqrt(rng.random(n))
+        types = np.array(["fluid"] * n)
+        pairs = D.interacting_pairs(x, y, z, types, h)
+        busiest = {}
+        for balance in D.BALANCES:
+            c = D.decompose(x, y, z, types, h, 2 * h, [2], balance=balance, pairs=pairs)[2]
+            r = D.summary_row(n, 2, c)
+            busiest[balance] = (r["pairs_own"] + r["pairs_cross"]) / (r["pairs_serial"] / 2)
+            if balance == "pairs":
+                self.assertGreater(c["owned"][0], 1.4 * c["owned"][1])   # the sparse, low slab
+            else:
+                self.assertLess(abs(c["owned"][0] - c["owned"][1]), 0.01 * n)
+        self.assertGreater(busiest["weight"], 1.2)
+        self.assertLess(busiest["pairs"], 1.1)
+        with self.assertRaisesRegex(D.ModelError, "balance 'time'"):
+            D.decompose(x, y, z, types, h, 2 * h, [2], balance="time", pairs=pairs)
+
 
 class Terms(unittest.TestCase):
     ROW = {"P": 64, "N": 64000, "pairs_serial": 2_000_000, "owned_max": 1000, "ghosts_max": 500,
@@ -131,6 +156,40 @@ class Terms(unittest.TestCase):
         proj = D.project(rows[:2], [8000, 64000], [4], 1e-6)
         self.assertEqual([p["extrapolated"] for p in proj], [False, True])
         self.assertTrue(all(0 < p["efficiency"] < 1 for p in proj))
+
+
+class Projection(unittest.TestCase):
+    def test_projection_from_stored_counts_both_balances_deterministic(self):
+        from plots import mpi_projection
+        rng = np.random.default_rng(2)
+        n, h = 6000, 0.03
+        x, y, z = 0.4 * rng.random(n), 0.4 * rng.random(n), np.sqrt(rng.random(n))
+        types = np.array(["fluid"] * n)
+        pairs = D.interacting_pairs(x, y, z, types, h)
+        rows = [dict(D.summary_row(n, p, c), order=order, balance=balance)
+                for order in mpi_projection.ORDERS for balance in D.BALANCES
+                for p, c in D.decompose(x, y, z, types, h, 2 * h, [1, 2, 4], order=order, balance=balance,
+                                        pairs=pairs).items()]
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp)
+            (out / "decomposition_counts.json").write_text(json.dumps({"rows": rows}), encoding="utf-8")
+            args = ["--out", tmp, "--s-per-particle-step", "2e-6", "--ranks", "1,2,4", "--targets", "1e5"]
+            svgs = []
+            for _ in range(2):
+                with contextlib.redirect_stdout(io.StringIO()):
+                    self.assertEqual(mpi_projection.main(args), 0)
+                svgs.append((out / "decomposition_model.svg").read_bytes())
+            self.assertEqual(svgs[0], svgs[1])
+            md = (out / "projection.md").read_text(encoding="utf-8")
+            self.assertIn("| efficiency, ranges balanced by pairs |", md)
+            proj = json.loads((out / "projection.json").read_text(encoding="utf-8"))["rows"]
+            self.assertLessEqual({("sort_x", 100000), ("hilbert", n)}, {(r["order"], r["N"]) for r in proj})
+            for r in proj:
+                self.assertLessEqual(r["efficiency"], 1.0 + 1e-12)
+                self.assertLessEqual(r["efficiency_pair_balance"], 1.0 + 1e-12)
+            # the density gradient along z: SortX slabs balanced by pairs are faster at P = 2
+            at = {(r["order"], r["N"], r["P"]): r for r in proj}
+            self.assertGreater(at[("sort_x", n, 2)]["efficiency_pair_balance"], at[("sort_x", n, 2)]["efficiency"])
 
 
 @unittest.skipUnless(os.environ.get("SPHNL_BUILD_DIR") and shutil.which("mpirun"),
