@@ -85,9 +85,10 @@ def step_seconds(p):
 
 def search_seconds(p):
     """Cost model of one repetition of a `search` point: the timed list build
-    (sphnl 0.2 us a point on one core, nanoflann about 8x that), plus the
-    untimed build each repetition starts with (the pair-set check)."""
-    one = 2e-7 * p["particles"] * (8 if p.get("impl", "sphnl") == "nanoflann" else 1)
+    (sphnl 0.2 us a point on one core, nanoflann about 25x that: the ratio
+    measured by the default run's `peers`), plus the untimed build each
+    repetition starts with (the pair-set check)."""
+    one = 2e-7 * p["particles"] * (25 if p.get("impl", "sphnl") == "nanoflann" else 1)
     threads = p.get("threads", 1)
     return 2 * (one / (0.9 * threads) if threads > 1 else one)
 
