@@ -95,7 +95,7 @@ reproduce: build counters-build
 	@echo "sphnl: report: results/$(RUN_ID)/REPRODUCTION.md"
 
 # The ablation studies (README.md, "Ablations"): not part of `make reproduce`
-# (its default size must stay within 25 min); run into the same folder.
+# (its default size must stay within 30 min); run into the same folder.
 ABLATIONS := ablation_pair_loop,ablation_simd,ablation_boundary_pairs,ablation_gridder_a,ablation_initial_order,beyond_loops,beyond_thread_updates,beyond_precision
 
 ablations: build

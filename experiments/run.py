@@ -85,10 +85,13 @@ def step_seconds(p):
 
 def search_seconds(p):
     """Cost model of one repetition of a `search` point: the timed list build
-    (sphnl 0.2 us a point on one core, nanoflann about 25x that: the ratio
-    measured by the default run's `peers`), plus the untimed build each
-    repetition starts with (the pair-set check)."""
-    one = 2e-7 * p["particles"] * (25 if p.get("impl", "sphnl") == "nanoflann" else 1)
+    plus the untimed build each repetition starts with (the pair-set check).
+    A build costs 0.5 us a point for sphnl on one core and 25x that for
+    nanoflann (the ratio the default run's `peers` measured); with these the
+    model gives the measured rounds of `peers`: 118 s against 2.0-2.7 min at
+    the default size, 1 530 s against 24 min 29 s for a FULL round (one
+    round, 3 December 2026), the time around the calls included."""
+    one = 5e-7 * p["particles"] * (25 if p.get("impl", "sphnl") == "nanoflann" else 1)
     threads = p.get("threads", 1)
     return 2 * (one / (0.9 * threads) if threads > 1 else one)
 
@@ -386,18 +389,30 @@ def run_experiment(args, exp, out_path, label):
     entries, rounds, context = [], [], {}
     start = time.monotonic()
     lines = [0]
+    elapsed_rounds = [0.0]  # seconds of the rounds already done
+
+    per_round_model = round_seconds(exp, size)
 
     def progress():
+        # Google Benchmark reports a configuration when its last repetition
+        # ends, and the interleaved repetitions of every configuration are
+        # spread over the whole round, so most configurations report near
+        # its end: a rate of reported configurations says nothing early in a
+        # round. Rounds already done give the measured round time.
         lines[0] += 1
         done, per_round = lines[0], configs * reps
         if done % reps:
             return
         elapsed = time.monotonic() - start
         in_round = done - per_round * len(rounds)
-        left = per_round - in_round + per_round * max(0, proto["min_rounds"] - len(rounds) - 1)
-        print(f"  {exp['id']}: round {len(rounds) + 1}, configs done {in_round // reps}/{configs}, "
-              f"elapsed {hms(elapsed)}, ETA {hms(elapsed / done * left)} (measured rate; "
-              "more rounds if the target is not met)", flush=True)
+        round_s = elapsed_rounds[0] / len(rounds) if rounds else per_round_model
+        source = "measured" if rounds else "model"
+        left_rounds = max(0, proto["min_rounds"] - len(rounds) - 1)
+        eta = max(0.0, round_s - (elapsed - elapsed_rounds[0])) + left_rounds * round_s
+        print(f"  {exp['id']}: round {len(rounds) + 1}, configurations reported {in_round // reps}/{configs} "
+              f"(each reports when its last interleaved repetition ends), elapsed {hms(elapsed)}, "
+              f"ETA {hms(eta)} ({source} round time {hms(round_s)}; more rounds if the target is not met)",
+              flush=True)
     try:
         reason = None
         while reason is None:
@@ -406,6 +421,7 @@ def run_experiment(args, exp, out_path, label):
             entries += round_entries
             rounds.append(record)
             elapsed = time.monotonic() - start
+            elapsed_rounds[0] = elapsed
             reason = P.stop_reason(P.metric_samples(entries, exp), proto, len(rounds), elapsed,
                                    elapsed / len(rounds))
             if record["under_load"]:

@@ -142,8 +142,11 @@ def main(argv=None):
                 bad.append(unit)
             print(f"===== {unit}: {run} tests, {fail} failed, {skip} skipped, {seconds:.1f} s =====")
             print(output.rstrip(), flush=True)
-    for path in filter(None, [times_path, SEED_TIMES if args.save_seconds else None]):
-        write_times(path, {u: t for u, t in times.items() if u in names} if path == SEED_TIMES else times)
+    if times_path:
+        write_times(times_path, times)
+    if args.save_seconds:  # every class that still exists, this run's seconds where it ran
+        known = set(test_classes(""))
+        write_times(SEED_TIMES, {u: t for u, t in times.items() if u in known})
     print(f"\nPython tests: {len(names)} test classes, {args.jobs} at a time, {time.monotonic() - t0:.1f} s"
           + (f"; failed: {', '.join(bad)}" if bad else ""))
     print(f"{total - failed - skipped} passed, {failed} failed, {skipped} skipped")
