@@ -28,6 +28,9 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+from harness.fsio import write_atomic  # noqa: E402
+
 TESTS = ROOT / "tests" / "python"
 TIMES_NAME = "python_test_seconds.json"
 SEED_TIMES = TESTS / "class_seconds.json"
@@ -89,9 +92,7 @@ def read_times(path):
 
 
 def write_times(path, times):
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(times, indent=1, sort_keys=True) + "\n", encoding="utf-8")
-    tmp.replace(path)
+    write_atomic(path, json.dumps(times, indent=1, sort_keys=True) + "\n")
 
 
 def counts(output):
