@@ -17,6 +17,13 @@ import numpy as np
 from harness import decomposition_model as D
 
 
+def z_gradient_cloud(n, side, seed):
+    """(x, y, z, types) of n fluid points in a side x side x 1 box whose
+    density grows linearly with z (the SortX ranges are z-slabs)."""
+    rng = np.random.default_rng(seed)
+    return side * rng.random(n), side * rng.random(n), np.sqrt(rng.random(n)), np.array(["fluid"] * n)
+
+
 class Partition(unittest.TestCase):
     def test_hilbert_index_of_the_unit_cube_is_a_path_of_unit_steps(self):
         c = np.arange(8)
@@ -78,10 +85,8 @@ class Partition(unittest.TestCase):
         # density growing with z (the SortX ranges are z-slabs): equal particle
         # counts give the dense slab more pairs; cutting by pairs moves particles
         # to the sparse slab and evens the pairs out
-        rng = np.random.default_rng(1)
         n, h = 20000, 0.02
-        x, y, z = 0.3 * rng.random(n), 0.3 * rng.random(n), np.sqrt(rng.random(n))
-        types = np.array(["fluid"] * n)
+        x, y, z, types = z_gradient_cloud(n, 0.3, seed=1)
         pairs = D.interacting_pairs(x, y, z, types, h)
         busiest = {}
         for balance in D.BALANCES:
@@ -161,10 +166,8 @@ class Terms(unittest.TestCase):
 class Projection(unittest.TestCase):
     def test_projection_from_stored_counts_both_balances_deterministic(self):
         from plots import mpi_projection
-        rng = np.random.default_rng(2)
         n, h = 6000, 0.03
-        x, y, z = 0.4 * rng.random(n), 0.4 * rng.random(n), np.sqrt(rng.random(n))
-        types = np.array(["fluid"] * n)
+        x, y, z, types = z_gradient_cloud(n, 0.4, seed=2)
         pairs = D.interacting_pairs(x, y, z, types, h)
         rows = [dict(D.summary_row(n, p, c), order=order, balance=balance)
                 for order in mpi_projection.ORDERS for balance in D.BALANCES
