@@ -2,9 +2,9 @@
 (mpirun) of T OpenMP threads each, timed by the run's own phase timers.
 
 experiments/run.py calls `run` for every experiment whose `benchmark` is
-`mpi`. A sweep point (`particles`, `list`, `list_steps`, `ranks`, `threads`;
-the top-level `max_cores` leaves out the layouts with ranks x threads above
-it) is one process group: `mpirun -np P sphnl run` (no launcher for P = 1)
+`mpi`. A sweep point (`particles`, `list`, `list_steps`, `ranks`, `threads`,
+optionally `balance_by`, run once on one rank; the top-level `max_cores`
+leaves out the layouts with ranks x threads above it) is one process group: `mpirun -np P sphnl run` (no launcher for P = 1)
 of `window_steps` steps from t = 0, no output but summary.json. Its entry
 holds the slowest rank's seconds per step in each phase, the communication
 share of the step, the bytes sent and the ghosts per rank.
@@ -73,7 +73,8 @@ def run_command(args, point, steps, out_dir):
     cmd = pre + [str(args.sphnl), "run", "--quiet", "--overwrite", "--out", str(out_dir)]
     for key, value in (("particles", point["particles"]), ("steps", steps), ("output_interval", 0),
                        ("progress", "false"), ("list", point["list"]), ("list_steps", point["list_steps"]),
-                       ("threads", point["threads"])):
+                       ("threads", point["threads"])) + ((("balance_by", point["balance_by"]),)
+                                                        if "balance_by" in point else ()):
         cmd += ["--set", f"{key}={R.format_value(value)}"]
     return cmd, binding
 
@@ -88,6 +89,8 @@ def entry(name, point, summary, steps, repetition, sequence, seconds):
     per_rank = summary.get("particles_per_rank", {"min": n, "max": n})
     ghosts = summary.get("ghosts_per_rank", {"min": 0, "max": 0})
     stats = summary.get("neighbour_stats", {})
+    pairs = float(stats.get("interactions", 0))
+    pairs_per_rank = summary.get("interactions_per_rank", {"min": pairs, "max": pairs})
     return {"name": name, "run_name": name, "run_type": "iteration", "repetitions": 1,
             "repetition_index": repetition, "threads": 1, "iterations": 1,
             "real_time": total, "cpu_time": total, "time_unit": "s",
@@ -102,6 +105,8 @@ def entry(name, point, summary, steps, repetition, sequence, seconds):
             "particles_per_rank_min": float(per_rank["min"]),
             "ghosts_per_rank_max": float(ghosts["max"]), "ghosts_per_rank_min": float(ghosts["min"]),
             "rebuilds": float(stats.get("builds", 0)), "cores": float(ranks * point["threads"]),
+            # how even the pair work was: the busiest rank's pairs over the mean, minus one
+            "pair_imbalance": float(pairs_per_rank["max"]) / (pairs / ranks) - 1.0 if pairs > 0 else 0.0,
             "wall_s_process": seconds, "run_sequence": sequence}
 
 

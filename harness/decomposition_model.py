@@ -8,8 +8,11 @@ Decomposition (the code's rules, checked against `mpirun sphnl run` in
 tests/python/test_decomposition_model.py):
   cells of side `cell` (2h for CLL) over the case's domain; keys along SortX
   (eq. 8: cz ncx ncy + cy ncx + cx) or Hilbert (every cell ranked by its
-  index on the padded cube, core/src/orderings/hilbert.cpp); weights fluid 1, boundary 1/4 per
-  particle; rank r's range ends after the first key where the running weight
+  index on the padded cube, core/src/orderings/hilbert.cpp); weights per key
+  the code's `balance_by`: "interactions" (the default; interaction_weights,
+  f (F + B) + b F of a cell's fluid f and boundary b particles and those of
+  its 27 cells F, B) or "weight" (`balance_by=particles`: fluid 1, boundary
+  1/4 per particle); rank r's range ends after the first key where the running weight
   reaches total r / P (KeyPartition::balanced); a cell's particles are a
   ghost on every other rank owning one of its 26 neighbour cells
   (Decomposition::ghost_destinations).
@@ -159,18 +162,37 @@ def interacting_pairs(x, y, z, types, h):
     return ij[keep]
 
 
-BALANCES = ("weight", "pairs")
+BALANCES = ("interactions", "weight", "pairs")
 
 
-def decompose(x, y, z, types, h, cell, ranks_list, order="sort_x", balance="weight", pairs=None):
+def interaction_weights(sortx, types, n):
+    """interaction_weights (core/src/parallel/decomposition.cpp) of every
+    SortX key: a cell's fluid f and boundary b particles against those of its
+    27 cells (itself included) F, B: f (F + B) + b F. No periodic seam (the
+    dam break has none)."""
+    nkeys = int(n[0] * n[1] * n[2])
+    shape = (int(n[2]), int(n[1]), int(n[0]))  # SortX: x fastest
+    f = np.bincount(sortx[types == FLUID], minlength=nkeys).astype(float).reshape(shape)
+    b = np.bincount(sortx[types == BOUNDARY], minlength=nkeys).astype(float).reshape(shape)
+
+    def stencil(a):
+        p = np.pad(a, 1)
+        return sum(p[1 + dz:1 + dz + shape[0], 1 + dy:1 + dy + shape[1], 1 + dx:1 + dx + shape[2]]
+                   for dz in (-1, 0, 1) for dy in (-1, 0, 1) for dx in (-1, 0, 1))
+    F, B = stencil(f), stencil(b)
+    return (f * (F + B) + b * F).ravel()
+
+
+def decompose(x, y, z, types, h, cell, ranks_list, order="sort_x", balance="interactions", pairs=None):
     """{P: counts} of the dam break's particles cut into P ranks along the
     cell order `order` (sort_x or hilbert): owned particles and weights,
     ghosts received and the ranks they come from, and the pairs each rank
     evaluates (`pairs_own`: both particles its own; `pairs_cross`: one its
-    own, one a ghost). `balance`: the ranges cut by the code's weights
-    (fluid 1, boundary 1/4: "weight") or by each particle's share of the
-    serial pairs (half its pairs: "pairs", what the code would need its pair
-    counts for). `pairs`: interacting_pairs of these particles, if made."""
+    own, one a ghost). `balance`: the ranges cut as the code cuts them, by
+    estimated candidate pairs per cell ("interactions", the default) or by
+    particle weights (fluid 1, boundary 1/4: "weight", `balance_by=particles`),
+    or, a what-if, by each particle's share of the serial pairs counted (half
+    its pairs: "pairs"). `pairs`: interacting_pairs of these particles, if made."""
     if order not in ("sort_x", "hilbert"):
         raise ModelError(f"cell order {order!r}: the model has sort_x and hilbert")
     if balance not in BALANCES:
@@ -184,11 +206,15 @@ def decompose(x, y, z, types, h, cell, ranks_list, order="sort_x", balance="weig
     keys = key_of(sortx)
     nkeys = int(n[0] * n[1] * n[2])
     ij = interacting_pairs(x, y, z, types, h) if pairs is None else pairs
-    if balance == "weight":
-        w = np.where(types == FLUID, WEIGHT[FLUID], WEIGHT[BOUNDARY])
+    if balance == "interactions":
+        weights = np.zeros(nkeys)
+        weights[key_of(np.arange(nkeys))] = interaction_weights(sortx, types, n)
     else:
-        w = 0.5 * np.bincount(ij.ravel(), minlength=len(keys))
-    weights = np.bincount(keys, weights=w, minlength=nkeys)
+        if balance == "weight":
+            w = np.where(types == FLUID, WEIGHT[FLUID], WEIGHT[BOUNDARY])
+        else:
+            w = 0.5 * np.bincount(ij.ravel(), minlength=len(keys))
+        weights = np.bincount(keys, weights=w, minlength=nkeys)
     cells_x, per_cell = np.unique(sortx, return_counts=True)  # occupied cells, by SortX key
     cells = key_of(cells_x)
     cz, rem = np.divmod(cells_x, n[0] * n[1])

@@ -32,7 +32,9 @@ FAMILY_KEYS = {
                  "pair_loop", "simd", "skip_boundary_pairs", "gridder_a_variant", "initial_order",
                  "extra_loops", "thread_updates", "precision", "cache_model"],
     # `sphnl run` under mpirun (the mpi kind, experiments/mpi_runs.py): ranks x threads
-    "mpi": ["particles", "list", "list_steps", "ranks", "threads"],
+    "mpi": ["particles", "list", "list_steps", "ranks", "threads",
+            # optional: what the ranks' cell ranges balance (ranks > 1 only)
+            "balance_by"],
 }
 # The flow time (s) a step window starts from when the sweep has no flow_time axis.
 DEFAULT_FLOW_TIME = 0.35
@@ -56,7 +58,7 @@ AXIS_DEFAULTS = {
     "counters": _STEP_DEFAULTS,  # cache_model has none: a counters sweep names it
     "cellindex": {},
     "search": {"impl": "sphnl", "cloud": "lattice", "memory_order": "generated", "call": "warm"},
-    "mpi": {},
+    "mpi": {"balance_by": "interactions"},  # not filled in on load: older runs cut by particles
 }
 # Axes filled in from AXIS_DEFAULTS when a name lacks them (lattice and h
 # coefficient stay absent in step rows, as the figures and claims expect).
@@ -145,7 +147,12 @@ def sweep_points(exp, size):
     points = [dict(zip(axes, combo)) for combo in itertools.product(*(sweep[a] for a in axes))]
     # the mpi kind: `max_cores` leaves out the layouts that would need more cores
     cores = exp.get("max_cores")
-    return [p for p in points if not cores or p.get("ranks", 1) * p.get("threads", 1) <= cores]
+    points = [p for p in points if not cores or p.get("ranks", 1) * p.get("threads", 1) <= cores]
+    # balance_by only matters on several ranks: one rank runs once, with the axis's first value
+    if "balance_by" in sweep:
+        first = sweep["balance_by"][0]
+        points = [p for p in points if p.get("ranks", 1) > 1 or p["balance_by"] == first]
+    return points
 
 
 def point_key(params, axes):

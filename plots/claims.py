@@ -607,6 +607,41 @@ def mpi_communication_share(med, c):
     return 100 * _one(at, "communication_share", list="cll"), f"{note}; CLL, 2 ranks x 1 thread", related
 
 
+def _balance_rows(med, c):
+    """The 2 x 1 CLL rows at the claim's N, by balance_by, and the note."""
+    n, note = _target_at(med, c)
+    if "balance_by" not in med:
+        raise NotMeasured("no balance_by axis in the results")
+    return n, note, _on(pick(med, particles=n), 2, 1, list="cll")
+
+
+@claim("mpi_balance_by_interactions")
+def mpi_balance_by_interactions(med, c):
+    """Speed of 2 ranks cut by estimated pairs over 2 ranks cut by particle
+    weights (CLL): t(particles) / t(interactions); related, the busiest
+    rank's pairs over the mean in each (counted, not timed)."""
+    n, note, rows = _balance_rows(med, c)
+    ratio = _one(rows, balance_by="particles") / _one(rows, balance_by="interactions")
+    related = {}
+    if "pair_imbalance" in rows:
+        for mode in ("particles", "interactions"):
+            related[f"busiest_rank_pairs_over_mean_pct_{mode}"] = 100 * _one(rows, "pair_imbalance", balance_by=mode)
+    return ratio, f"{note}; CLL, 2 ranks x 1 thread", related
+
+
+@claim("mpi_balanced_2ranks_vs_2threads")
+def mpi_balanced_2ranks_vs_2threads(med, c):
+    """Speed of 2 ranks x 1 thread balanced by interactions over 1 rank x 2
+    threads (CLL): t(1 x 2) / t(2 x 1); related, the same by particles and
+    the communication share."""
+    n, note, rows = _balance_rows(med, c)
+    threads = _one(_on(pick(med, particles=n), 1, 2), list="cll")
+    related = {"by_particles_ratio": threads / _one(rows, balance_by="particles")}
+    if "communication_share" in rows:
+        related["communication_share_pct"] = 100 * _one(rows, "communication_share", balance_by="interactions")
+    return threads / _one(rows, balance_by="interactions"), f"{note}; speed of 2 ranks over 2 threads, CLL", related
+
+
 # ------------------------------------------------------------------ verdicts
 def validate_claim(c, where):
     """Every band two-sided, finite, reproduced inside partly, with a reason."""

@@ -101,7 +101,7 @@ def projection_figure(counts, proj, out):
     projected parallel efficiency and communication share against P."""
     fig, axes = plt.subplots(1, 3, figsize=(19.2, 4.8))
     c = pd.DataFrame(counts)
-    c = c[c["balance"] == "weight"]  # the ranges the code cuts
+    c = c[c["balance"] == "interactions"]  # the ranges the code cuts by default
     big = c[(c["N"] == c["N"].max()) & (c["P"] > 1)]  # one rank has no ghosts
     for order in ORDERS:
         part = big[big["order"] == order].sort_values("P")
@@ -139,8 +139,8 @@ def projection_figure(counts, proj, out):
 def table(proj, ps=(1, 16, 128, 1024)):
     lines = ["| order | N | P | compute (ms) | exchanges: latency (ms) | exchanges: bytes (ms) | reductions (ms) "
              "| P-vector sum (ms) | step (ms) | communication | efficiency | efficiency, neighbour exchange "
-             "| efficiency, ranges balanced by pairs |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| efficiency, ranges by particle weights | efficiency, ranges balanced by pairs |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in proj:
         if r["P"] in ps:
             lines.append(f"| {r['order']} | {r['N']:.3g}{' *' if r['extrapolated'] else ''} | {r['P']} | {1e3 * r['compute']:.3g} "
@@ -148,6 +148,7 @@ def table(proj, ps=(1, 16, 128, 1024)):
                          f"| {1e3 * r['reductions']:.3g} | {1e3 * r['rank_vector_sum']:.3g} | {1e3 * r['step_s']:.3g} "
                          f"| {100 * r['communication_share']:.1f} % | {100 * r['efficiency']:.1f} % "
                          f"| {100 * r['efficiency_neighbour_exchange']:.1f} % "
+                         f"| {100 * r['efficiency_weight_balance']:.1f} % "
                          f"| {100 * r['efficiency_pair_balance']:.1f} % |")
     return "\n".join(lines) + "\n\n`*`: N extrapolated from the largest N counted (harness/decomposition_model.py).\n"
 
@@ -175,8 +176,9 @@ def main(argv=None):
         counts = None
         if counts_path.exists() and not args.recount:
             counts = json.loads(counts_path.read_text(encoding="utf-8"))["rows"]
-            if not all("pairs_serial" in r and "balance" in r for r in counts):  # an older model's counts
-                print(f"mpi_projection: {counts_path} has no pair counts or balances; counting again",
+            if not all("pairs_serial" in r and "balance" in r for r in counts) or \
+                    {r["balance"] for r in counts} != set(D.BALANCES):  # an older model's counts
+                print(f"mpi_projection: {counts_path} has no pair counts or not every balance; counting again",
                       file=sys.stderr)
                 counts = None
         if counts is None:
@@ -190,14 +192,17 @@ def main(argv=None):
     n_list = sorted(set(targets + [r["N"] for r in counts]))
     proj, alphas = [], {}
     for order in ORDERS:
-        rows = [r for r in counts if r["order"] == order and r["balance"] == "weight"]
+        rows = [r for r in counts if r["order"] == order and r["balance"] == "interactions"]
+        by_weight = [r for r in counts if r["order"] == order and r["balance"] == "weight"]
         by_pairs = [r for r in counts if r["order"] == order and r["balance"] == "pairs"]
         kw = dict(latency=args.latency, bandwidth=args.bandwidth, order=order)
         base = D.project(rows, n_list, ranks, per_particle, **kw)
         nbr = D.project(rows, n_list, ranks, per_particle, exchange="neighbour", **kw)
+        pw = D.project(by_weight, n_list, ranks, per_particle, **kw)
         pb = D.project(by_pairs, n_list, ranks, per_particle, **kw)
         proj += [dict(r, order=order, efficiency_neighbour_exchange=q["efficiency"],
-                      efficiency_pair_balance=b["efficiency"]) for r, q, b in zip(base, nbr, pb)]
+                      efficiency_weight_balance=w["efficiency"], efficiency_pair_balance=b["efficiency"])
+                 for r, q, w, b in zip(base, nbr, pw, pb)]
         alphas[order] = {str(p): D.fit_exponent(rows, "ghosts_max", p) for p in ranks}
     meta = {"latency_s": args.latency, "bandwidth_Bps": args.bandwidth, "s_per_particle_step": per_particle,
             "s_per_pair": per_pair, "cost_source": source,

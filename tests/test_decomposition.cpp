@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <numeric>
 #include <set>
 #include <stdexcept>
@@ -33,7 +34,9 @@ TEST(KeyPartition, RangesAreContiguousAndCoverEveryKey) {
     EXPECT_EQ(p.end(ranks - 1), 100u);
     for (int r = 0; r < ranks; ++r) {
       EXPECT_LT(p.begin(r), p.end(r)) << "rank " << r << " owns no key";
-      if (r > 0) EXPECT_EQ(p.begin(r), p.end(r - 1));
+      if (r > 0) {
+        EXPECT_EQ(p.begin(r), p.end(r - 1));
+      }
       for (std::uint32_t k = p.begin(r); k < p.end(r); ++k) EXPECT_EQ(p.owner(k), r);
     }
     // A cut lands on a key boundary: no rank is over the mean by more than the heaviest key.
@@ -117,6 +120,47 @@ TEST(Decomposition, GhostDestinationsAreTheHalosSeenFromTheSender) {
             << "rank " << r << " order " << to_string(kind) << " period " << period;
         EXPECT_FALSE(halo.empty());
       }
+    }
+}
+
+TEST(InteractionWeights, CountEachCellsCandidatePairsWithoutBoundaryPairs) {
+  // Particles placed cell by cell; the estimate of a cell must be the ordered
+  // pairs (p in the cell, q in a cell next to it or in it) that are not both
+  // boundary, counted here particle by particle, with the y seam wrapped.
+  for (const CellOrderKind kind : {CellOrderKind::sort_x, CellOrderKind::hilbert})
+    for (const double period : {0.0, 3.0}) {
+      GridFixture f(kind, 4, 3, 2, period);
+      const std::size_t keys = f.order->num_keys();
+      std::vector<double> fluid(keys, 0.0), boundary(keys, 0.0);
+      struct P { int x, y, z; bool fluid; };
+      std::vector<P> particles;
+      for (int z = 0; z < 2; ++z)
+        for (int y = 0; y < 3; ++y)
+          for (int x = 0; x < 4; ++x) {
+            const std::uint32_t k = f.order->key(x, y, z);
+            fluid[k] = (x * 7 + y * 3 + z) % 4;
+            boundary[k] = (x + 2 * y + 5 * z) % 3;
+            for (int i = 0; i < fluid[k]; ++i) particles.push_back({x, y, z, true});
+            for (int i = 0; i < boundary[k]; ++i) particles.push_back({x, y, z, false});
+          }
+      std::vector<double> w(keys, -1.0);
+      interaction_weights(f.grid, *f.order, fluid, boundary, 0, static_cast<std::uint32_t>(keys), w);
+      std::vector<double> brute(keys, 0.0);
+      for (const P& p : particles)
+        for (const P& q : particles) {
+          int dy = std::abs(p.y - q.y);
+          if (period > 0) dy = std::min(dy, 3 - dy);
+          if (std::abs(p.x - q.x) > 1 || dy > 1 || std::abs(p.z - q.z) > 1 || (!p.fluid && !q.fluid)) continue;
+          brute[f.order->key(p.x, p.y, p.z)] += 1;
+        }
+      for (std::size_t k = 0; k < keys; ++k)
+        if (f.order->key_coords()[k] != CellOrder::kNoCellCoords) {
+          EXPECT_EQ(w[k], brute[k]) << "key " << k << " order " << to_string(kind) << " period " << period;
+        }
+      // A sub-range writes only its own keys.
+      std::vector<double> part(keys, -1.0);
+      interaction_weights(f.grid, *f.order, fluid, boundary, 2, 5, part);
+      for (std::size_t k = 0; k < keys; ++k) EXPECT_EQ(part[k], k >= 2 && k < 5 ? w[k] : -1.0) << "key " << k;
     }
 }
 

@@ -217,7 +217,8 @@ json parallel_summary(const Simulation& sim, Communicator& comm) {
                    static_cast<double>(sim.neighbour_bytes()), static_cast<double>(d.bytes_sent())};
   comm.sum(sums);
   double maxima[] = {t.neighbour_list, t.force, t.update, t.communication, t.total(), owned, -owned, ghosts, -ghosts,
-                     static_cast<double>(peak_rss_bytes()), fluid, -fluid};
+                     static_cast<double>(peak_rss_bytes()), fluid, -fluid,
+                     static_cast<double>(st.interactions), -static_cast<double>(st.interactions)};
   comm.max(maxima);
   auto count = [](double v) { return static_cast<std::uint64_t>(std::llround(v)); };
   auto range = [&](double lo, double hi) { return json{{"min", count(lo)}, {"max", count(hi)}}; };
@@ -226,6 +227,8 @@ json parallel_summary(const Simulation& sim, Communicator& comm) {
   p["particles_per_rank"] = range(-maxima[6], maxima[5]);
   p["ghosts_per_rank"] = range(-maxima[8], maxima[7]);
   p["fluid_per_rank"] = range(-maxima[11], maxima[10]);
+  // The work balance the key ranges reached (balance_by): pairs each rank evaluated over the run.
+  p["interactions_per_rank"] = range(-maxima[13], maxima[12]);
   p["bytes_sent_per_step"] = sums[5] / steps;
   p["partitions"] = d.partitions();
   p["counts"] = {{"candidates", count(sums[0])}, {"interactions", count(sums[1])}, {"list_pairs", count(sums[2])},
@@ -340,7 +343,8 @@ int run_main(int argc, char** argv) {
       if (!root) return;
       const Case& c = sim.case_info();
       s["n_total"] = c.n_fluid + c.n_boundary;
-      for (const char* k : {"ranks", "particles_per_rank", "ghosts_per_rank", "fluid_per_rank", "bytes_sent_per_step", "partitions"})
+      for (const char* k : {"ranks", "particles_per_rank", "ghosts_per_rank", "fluid_per_rank", "interactions_per_rank",
+                            "bytes_sent_per_step", "partitions"})
         s[k] = p[k];
       for (const auto& [k, v] : p["counts"].items())
         if (k == "neighbour_bytes") s[k] = v; else s["neighbour_stats"][k] = v;

@@ -22,6 +22,7 @@ constexpr std::array kInitialOrderNames{"generated", "shuffled"};
 constexpr std::array kOnOffNames{"on", "off"};
 constexpr std::array kThreadUpdateNames{"private", "phased"};
 constexpr std::array kPrecisionNames{"double", "mixed"};
+constexpr std::array kBalanceNames{"interactions", "particles"};
 
 template <class Names>
 std::string join(const Names& names) {
@@ -147,6 +148,8 @@ const std::vector<Key>& key_table() {
        [](const RunConfig& c) { return json(c.extra_loops); }},
       {"rebalance_threshold", [](RunConfig& c, const json& v) { c.rebalance_threshold = get_number("rebalance_threshold", v, 0, 1e3, false); },
        [](const RunConfig& c) { return json(c.rebalance_threshold); }},
+      {"balance_by", [](RunConfig& c, const json& v) { c.balance_by = get_enum<BalanceBy>("balance_by", v, kBalanceNames); },
+       [](const RunConfig& c) { return json(to_string(c.balance_by)); }},
   };
   return table;
 }

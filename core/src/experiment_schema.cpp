@@ -85,6 +85,8 @@ const std::vector<Axis>& axes() {
       // processes of a distributed `sphnl run` under mpirun (the mpi kind,
       // experiments/mpi_runs.py): a launcher setting, not a config key
       {"ranks", {"mpi"}, {"mpi"}, positive_integer},
+      // what the ranks' cell ranges balance (optional; default interactions)
+      {"balance_by", {"mpi"}, {}, {}},
   };
   return table;
 }

@@ -36,5 +36,9 @@ const char* to_string(Precision p) {
   constexpr const char* names[] = {"double", "mixed"};
   return names[static_cast<int>(p)];
 }
+const char* to_string(BalanceBy b) {
+  constexpr const char* names[] = {"interactions", "particles"};
+  return names[static_cast<int>(b)];
+}
 
 }  // namespace sphnl

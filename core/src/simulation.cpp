@@ -93,7 +93,7 @@ void Simulation::init(Communicator* comm) {
   update_derived(phys_, ps_, 0, ps_.size());
   if (comm && comm->size() > 1) {
     domain_ = std::make_unique<DomainExchange>(*comm, phys_, case_.domain, case_.period_y, config_.cell_order,
-                                               config_.rebalance_threshold);
+                                               config_.rebalance_threshold, config_.balance_by);
     domain_->distribute(ps_, 2.0 * phys_.h());
   }
 }

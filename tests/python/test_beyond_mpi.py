@@ -131,8 +131,9 @@ class WithStandIn(unittest.TestCase):
     def test_entries_carry_the_step_time_and_communication_of_the_slowest_rank(self):
         e = next(b for b in self.doc["benchmarks"]
                  if b["run_name"] == "mpi/particles:31239/list:cll/list_steps:7/ranks:2/threads:1")
-        step = 31239e-6 / 2
+        step = 31239e-6 / 2 * 1.01  # the stand-in's busiest rank: 1 % more pairs than the mean
         self.assertAlmostEqual(e["s_per_step"], 1.05 * step)
+        self.assertAlmostEqual(e["pair_imbalance"], 0.01, places=6)
         self.assertAlmostEqual(e["communication_share"], 0.05 / 1.05)
         self.assertEqual(e["n_per_rank"], 31239 / 2)
         self.assertEqual(e["ghosts_per_rank_max"], 120)
@@ -155,7 +156,7 @@ class WithStandIn(unittest.TestCase):
 
     def test_target_claims(self):
         ratio = self.claim("mpi_2ranks_vs_2threads")
-        self.assertAlmostEqual(ratio["value"], 1 / 1.05, places=6)  # 2 threads: no communication
+        self.assertAlmostEqual(ratio["value"], 1 / (1.05 * 1.01), places=6)  # 2 threads: no communication, no imbalance
         self.assertEqual(ratio["verdict"], "reproduced")
         self.assertIn("claim read at", ratio["note"])
         share = self.claim("mpi_communication_share")
@@ -173,6 +174,59 @@ class WithStandIn(unittest.TestCase):
             self.assertGreater((out / f"beyond_mpi.{ext}").stat().st_size, 1000)
         self.assertIn("speed-up over one core", sentence)
         self.assertIn("N/P = 4 000", sentence)
+
+
+BALANCE = json.loads((ROOT / "experiments" / "beyond_mpi_balance.json").read_text(encoding="utf-8"))
+
+
+class BalanceWithStandIn(unittest.TestCase):
+    """experiments/beyond_mpi_balance.json's default sweep on the stand-in,
+    whose 2-rank step is 8 % slower by particles and 1 % by interactions."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.mkdtemp(prefix="sphnl_mpi_balance_")
+        out = Path(cls.tmp) / "run" / "beyond_mpi_balance.json"
+        out.parent.mkdir()
+        exp = json.loads(json.dumps(BALANCE))
+        exp["protocol"]["default"].update(min_rounds=3, max_rounds=3, reps_per_round=3)
+        real, MPI.run_one = MPI.run_one, in_process
+        try:
+            MPI.run(args_for(cls.tmp), exp, out, "[1/1]", dict(os.environ), progress=lambda m: None)
+        finally:
+            MPI.run_one = real
+        cls.doc = json.loads(out.read_text(encoding="utf-8"))
+        cls.rows = R.load_run(out.parent)
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.tmp)
+
+    def test_one_rank_runs_once_and_the_two_rank_runs_name_their_balance(self):
+        points = R.sweep_points(BALANCE, "default")
+        layouts = sorted((p["ranks"], p["threads"], p["balance_by"]) for p in points)
+        self.assertEqual(layouts, [(1, 1, "interactions"), (1, 2, "interactions"),
+                                   (2, 1, "interactions"), (2, 1, "particles")])
+        names = {e["run_name"] for e in self.doc["benchmarks"]}
+        self.assertIn("mpi/particles:150000/list:cll/list_steps:1/ranks:2/threads:1/balance_by:particles", names)
+        with tempfile.TemporaryDirectory() as tmp:
+            cmd, _ = MPI.run_command(args_for(tmp), points[-1], 21, Path(tmp) / "w")
+        self.assertIn(f"balance_by={points[-1]['balance_by']}", cmd)
+
+    def claim(self, cid):
+        c = next(c for c in BALANCE["claims"] if c["id"] == cid)
+        C.validate_claim(c, "beyond_mpi_balance.json")
+        return C.evaluate(c, self.rows, resamples=20)
+
+    def test_claims_read_the_balance_ratio_and_the_pair_counts(self):
+        r = self.claim("mpi_balance_by_interactions")
+        self.assertAlmostEqual(r["value"], 1.08 / 1.01, places=6)
+        self.assertEqual(r["verdict"], "reproduced")
+        self.assertAlmostEqual(r["related"]["busiest_rank_pairs_over_mean_pct_particles"]["value"], 8.0, places=4)
+        self.assertAlmostEqual(r["related"]["busiest_rank_pairs_over_mean_pct_interactions"]["value"], 1.0, places=4)
+        t = self.claim("mpi_balanced_2ranks_vs_2threads")
+        self.assertAlmostEqual(t["value"], 1 / (1.01 * 1.05), places=6)
+        self.assertAlmostEqual(t["related"]["by_particles_ratio"]["value"], 1 / (1.08 * 1.05), places=6)
 
 
 @unittest.skipUnless(os.environ.get("SPHNL_BUILD_DIR") and shutil.which("mpirun"),

@@ -93,12 +93,14 @@ class Partition(unittest.TestCase):
             c = D.decompose(x, y, z, types, h, 2 * h, [2], balance=balance, pairs=pairs)[2]
             r = D.summary_row(n, 2, c)
             busiest[balance] = (r["pairs_own"] + r["pairs_cross"]) / (r["pairs_serial"] / 2)
-            if balance == "pairs":
-                self.assertGreater(c["owned"][0], 1.4 * c["owned"][1])   # the sparse, low slab
-            else:
+            if balance == "weight":
                 self.assertLess(abs(c["owned"][0] - c["owned"][1]), 0.01 * n)
+            else:
+                self.assertGreater(c["owned"][0], 1.4 * c["owned"][1])   # the sparse, low slab
         self.assertGreater(busiest["weight"], 1.2)
         self.assertLess(busiest["pairs"], 1.1)
+        # the code's estimate from cell counts comes close to the pairs counted
+        self.assertLess(busiest["interactions"], 1.1)
         with self.assertRaisesRegex(D.ModelError, "balance 'time'"):
             D.decompose(x, y, z, types, h, 2 * h, [2], balance="time", pairs=pairs)
 
@@ -184,15 +186,18 @@ class Projection(unittest.TestCase):
                 svgs.append((out / "decomposition_model.svg").read_bytes())
             self.assertEqual(svgs[0], svgs[1])
             md = (out / "projection.md").read_text(encoding="utf-8")
-            self.assertIn("| efficiency, ranges balanced by pairs |", md)
+            self.assertIn("| efficiency, ranges by particle weights | efficiency, ranges balanced by pairs |", md)
             proj = json.loads((out / "projection.json").read_text(encoding="utf-8"))["rows"]
             self.assertLessEqual({("sort_x", 100000), ("hilbert", n)}, {(r["order"], r["N"]) for r in proj})
             for r in proj:
                 self.assertLessEqual(r["efficiency"], 1.0 + 1e-12)
                 self.assertLessEqual(r["efficiency_pair_balance"], 1.0 + 1e-12)
-            # the density gradient along z: SortX slabs balanced by pairs are faster at P = 2
+            # the density gradient along z: SortX slabs balanced by pairs, or by the code's
+            # estimate of them, are faster at P = 2 than slabs of equal particle weight
             at = {(r["order"], r["N"], r["P"]): r for r in proj}
-            self.assertGreater(at[("sort_x", n, 2)]["efficiency_pair_balance"], at[("sort_x", n, 2)]["efficiency"])
+            self.assertGreater(at[("sort_x", n, 2)]["efficiency_pair_balance"],
+                               at[("sort_x", n, 2)]["efficiency_weight_balance"])
+            self.assertGreater(at[("sort_x", n, 2)]["efficiency"], at[("sort_x", n, 2)]["efficiency_weight_balance"])
 
 
 @unittest.skipUnless(os.environ.get("SPHNL_BUILD_DIR") and shutil.which("mpirun"),
@@ -203,18 +208,20 @@ class AgainstTheCode(unittest.TestCase):
         sphnl = str(Path(os.environ["SPHNL_BUILD_DIR"]) / "sphnl")
         cmd = ["mpirun", "-np", "3", "--oversubscribe"] + (["--allow-run-as-root"] if os.getuid() == 0 else [])
         env = {**os.environ, "OMPI_MCA_btl_vader_single_copy_mechanism": "none"}
-        for order in ("sort_x", "hilbert"):
-            with self.subTest(order=order), tempfile.TemporaryDirectory() as tmp:
+        for order, balance_by, balance in (("sort_x", "interactions", "interactions"),
+                                           ("hilbert", "interactions", "interactions"),
+                                           ("sort_x", "particles", "weight"), ("hilbert", "particles", "weight")):
+            with self.subTest(order=order, balance_by=balance_by), tempfile.TemporaryDirectory() as tmp:
                 # one CLL step from t = 0: the ghosts of its build are those of the t = 0 distribution
                 r = subprocess.run(cmd + [sphnl, "run", "--quiet", "--out", tmp, "--set", "particles=3000",
                                           "--set", "steps=1", "--set", "output_interval=1", "--set", "progress=false",
-                                          "--set", f"cell_order={order}"],
+                                          "--set", f"cell_order={order}", "--set", f"balance_by={balance_by}"],
                                    capture_output=True, text=True, env=env, timeout=120)
                 self.assertEqual(r.returncode, 0, r.stderr)
                 s = json.loads((Path(tmp) / "summary.json").read_text())
                 df = pd.read_csv(Path(tmp) / s["snapshots"][0]["csv"])
                 c = D.decompose(df["x"].to_numpy(), df["y"].to_numpy(), df["z"].to_numpy(), df["type"].to_numpy(),
-                                s["h"], 2 * s["h"], [3], order=order)[3]
+                                s["h"], 2 * s["h"], [3], order=order, balance=balance)[3]
                 self.assertEqual({"min": int(c["ghosts"].min()), "max": int(c["ghosts"].max())}, s["ghosts_per_rank"])
                 self.assertEqual({"min": int(c["owned"].min()), "max": int(c["owned"].max())}, s["particles_per_rank"])
                 # nothing migrates at t = 0: the bytes of the step are the ghosts' 10 doubles each

@@ -54,6 +54,7 @@ struct Outcome {
   double migrated = 0;            // particles that changed rank
   double remote_rebuilds = 0;     // VL_X rebuilds a rank took because another rank's particles moved
   bool builds_equal = true;       // every rank built as often as rank 0
+  double interaction_imbalance = 0;  // pairs the busiest rank evaluated over the mean, minus one
 };
 
 inline Case scenario_case(const Scenario& sc, PhysicsParams& phys) {
@@ -105,6 +106,8 @@ inline Outcome run_scenario(const Scenario& sc, Communicator* comm) {
   o.remote_rebuilds = comm->sum(static_cast<double>(d.remote_rebuilds()));
   const double b = static_cast<double>(o.builds);
   o.builds_equal = comm->max(b) == -comm->max(-b);
+  const double pairs = static_cast<double>(sim.neighbour_stats().interactions);
+  o.interaction_imbalance = comm->max(pairs) / (comm->sum(pairs) / comm->size()) - 1.0;
   return o;
 }
 

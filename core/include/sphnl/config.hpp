@@ -64,6 +64,7 @@ struct RunConfig {
   // distributed runs (mpirun -np P): re-cut the ranks' key ranges at a build
   // when the heaviest rank holds more than (1 + this) times the mean work
   double rebalance_threshold = 0.1;
+  BalanceBy balance_by = BalanceBy::interactions;  // the work the key ranges balance (kinds.hpp)
 
   double effective_skin_factor() const {
     if (skin_factor > 0) return skin_factor;

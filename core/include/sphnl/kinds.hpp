@@ -41,6 +41,13 @@ enum class ThreadUpdates : std::uint8_t { private_accumulators, phased };
 /// (pair_kernel.hpp). The neighbour search is double in both.
 enum class Precision : std::uint8_t { double_precision, mixed };
 
+/// What a distributed run (mpirun -np P) balances when it cuts the ranks' key
+/// ranges (config `balance_by`): `interactions`, the candidate pairs each
+/// cell's particles meet in the cells around it (interaction_weights in
+/// parallel/decomposition.hpp), or `particles`, a fluid particle 1 and a
+/// boundary one 1/4 (DomainExchange::weight).
+enum class BalanceBy : std::uint8_t { interactions, particles };
+
 const char* to_string(GridderKind g);
 const char* to_string(CellOrderKind o);
 const char* to_string(ListKind l);
@@ -49,5 +56,6 @@ const char* to_string(SlidingVariant v);
 const char* to_string(InitialOrder o);
 const char* to_string(ThreadUpdates u);
 const char* to_string(Precision p);
+const char* to_string(BalanceBy b);
 
 }  // namespace sphnl

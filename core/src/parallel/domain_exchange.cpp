@@ -1,6 +1,7 @@
 #include "sphnl/parallel/domain_exchange.hpp"
 
 #include <algorithm>
+#include <numeric>
 #include <string>
 
 #include "sphnl/input_error.hpp"
@@ -46,8 +47,8 @@ void unpack_ghost(const double* r, ParticleSet& ps, std::size_t i) {
 }  // namespace
 
 DomainExchange::DomainExchange(Communicator& comm, const PhysicsParams& phys, const Box& domain, double period_y,
-                               CellOrderKind order, double rebalance_threshold)
-    : comm_(comm), phys_(phys), domain_(domain), period_y_(period_y), threshold_(rebalance_threshold),
+                               CellOrderKind order, double rebalance_threshold, BalanceBy balance)
+    : comm_(comm), phys_(phys), domain_(domain), period_y_(period_y), threshold_(rebalance_threshold), balance_(balance),
       rank_(comm.rank()), ranks_(comm.size()), order_(make_cell_order(order)),
       send_index_(comm.size()), recv_index_(comm.size()), send_(comm.size()), recv_(comm.size()) {}
 
@@ -69,18 +70,50 @@ void DomainExchange::check_cells() const {
                       " m: every rank must own at least one cell; run with fewer ranks (mpirun -np) or more particles");
 }
 
-std::vector<double> DomainExchange::key_weights(const ParticleSet& ps) const {
-  std::vector<double> w(order_->num_keys(), 0.0);
+std::vector<double> DomainExchange::key_weights(const ParticleSet& ps, bool reduce) {
+  const std::size_t keys = order_->num_keys();
+  if (balance_ == BalanceBy::particles) {
+    std::vector<double> w(keys, 0.0);
+    for (std::size_t i = 0; i < owned_; ++i)
+      if (keys_[i] != kNoCell) w[keys_[i]] += weight(ps.type[i]);
+    if (reduce) sum(w);  // exact: sums of 1 and 1/4
+    return w;
+  }
+  // Fluid counts in the first half, boundary counts in the second: one reduction.
+  std::vector<double> counts(2 * keys, 0.0);
   for (std::size_t i = 0; i < owned_; ++i)
-    if (keys_[i] != kNoCell) w[keys_[i]] += weight(ps.type[i]);
+    if (keys_[i] != kNoCell && ps.type[i] != ParticleType::out)
+      counts[keys_[i] + (ps.type[i] == ParticleType::fluid ? 0 : keys)] += 1;
+  if (reduce) sum(counts);  // exact: integer counts
+  const std::span<const double> all(counts);
+  std::vector<double> w(keys, 0.0);
+  interaction_weights(grid_, *order_, all.first(keys), all.subspan(keys), 0, static_cast<std::uint32_t>(keys), w);
   return w;
+}
+
+double DomainExchange::local_work_estimate(const ParticleSet& ps) {
+  const std::size_t keys = order_->num_keys();
+  fluid_count_.assign(keys, 0.0);
+  boundary_count_.assign(keys, 0.0);
+  key_work_.assign(keys, 0.0);
+  ghost_keys_.resize(ghosts_);
+  order_->compute_keys(grid_, std::span<const double>(ps.x.data() + owned_, ghosts_),
+                       std::span<const double>(ps.y.data() + owned_, ghosts_),
+                       std::span<const double>(ps.z.data() + owned_, ghosts_), ps.type.data() + owned_, ghost_keys_);
+  auto add = [&](std::uint32_t key, ParticleType t) {
+    if (key == kNoCell || t == ParticleType::out) return;
+    (t == ParticleType::fluid ? fluid_count_ : boundary_count_)[key] += 1;
+  };
+  for (std::size_t i = 0; i < owned_; ++i) add(keys_[i], ps.type[i]);
+  for (std::size_t g = 0; g < ghosts_; ++g) add(ghost_keys_[g], ps.type[owned_ + g]);
+  // The ghosts fill this rank's halo, so its own cells see every neighbour the global counts would give them.
+  interaction_weights(grid_, *order_, fluid_count_, boundary_count_, partition_.begin(rank_), partition_.end(rank_), key_work_);
+  return std::accumulate(key_work_.begin() + partition_.begin(rank_), key_work_.begin() + partition_.end(rank_), 0.0);
 }
 
 void DomainExchange::repartition(const ParticleSet& ps) {
   check_cells();
-  std::vector<double> w = key_weights(ps);
-  sum(w);  // exact: sums of 1 and 1/4
-  partition_ = KeyPartition::balanced(w, ranks_);
+  partition_ = KeyPartition::balanced(key_weights(ps, true), ranks_);
   ++partitions_;
 }
 
@@ -90,7 +123,7 @@ void DomainExchange::distribute(ParticleSet& ps, double cell) {
   compute_keys(ps);
   check_cells();
   // Every rank holds the same full set here: the weights need no reduction.
-  partition_ = KeyPartition::balanced(key_weights(ps), ranks_);
+  partition_ = KeyPartition::balanced(key_weights(ps, false), ranks_);
   ++partitions_;
   std::size_t kept = 0;
   std::vector<double> record;
@@ -121,10 +154,16 @@ void DomainExchange::exchange_particles(ParticleSet& ps, double cell) {
   compute_keys(ps);
   bool rebalance = new_grid;
   if (!rebalance) {
-    // The weight each rank's range holds now: a vector of P, not of keys.
+    // The work each rank's range holds now: a vector of P, not of keys. By
+    // interactions it is each rank's estimate at the last build (its ghosts
+    // are gone by now), one build late.
     std::vector<double> w(ranks_, 0.0);
-    for (std::size_t i = 0; i < owned_; ++i)
-      if (keys_[i] != kNoCell) w[partition_.owner(keys_[i])] += weight(ps.type[i]);
+    if (balance_ == BalanceBy::interactions) {
+      w[rank_] = work_estimate_;
+    } else {
+      for (std::size_t i = 0; i < owned_; ++i)
+        if (keys_[i] != kNoCell) w[partition_.owner(keys_[i])] += weight(ps.type[i]);
+    }
     sum(w);
     rebalance = imbalance(w) > threshold_;
   }
@@ -132,6 +171,7 @@ void DomainExchange::exchange_particles(ParticleSet& ps, double cell) {
   migrate(ps);
   compute_keys(ps);
   send_ghosts(ps);
+  if (balance_ == BalanceBy::interactions) work_estimate_ = local_work_estimate(ps);
 }
 
 void DomainExchange::migrate(ParticleSet& ps) {
@@ -209,7 +249,7 @@ void DomainExchange::built(const ParticleGrid& grid, bool permuted, ParticleSet&
       for (auto& i : list) i = inverse_[i];
 }
 
-void DomainExchange::refresh(ParticleSet& ps, std::span<std::vector<double>* const> fields) {
+void DomainExchange::refresh(std::span<std::vector<double>* const> fields) {
   const std::size_t nf = fields.size();
   for (int q = 0; q < ranks_; ++q) {
     send_[q].clear();
@@ -228,13 +268,13 @@ void DomainExchange::refresh(ParticleSet& ps, std::span<std::vector<double>* con
 
 void DomainExchange::refresh_ghosts(ParticleSet& ps) {
   std::vector<double>* fields[] = {&ps.x, &ps.y, &ps.z, &ps.vx, &ps.vy, &ps.vz, &ps.rho};
-  refresh(ps, fields);
+  refresh(fields);
   update_derived(phys_, ps, owned_, ps.size());
 }
 
 void DomainExchange::refresh_kgc(ParticleSet& ps) {
   std::vector<double>* fields[] = {&ps.kgc[0], &ps.kgc[1], &ps.kgc[2], &ps.kgc[3], &ps.kgc[4], &ps.kgc[5]};
-  refresh(ps, fields);
+  refresh(fields);
 }
 
 void DomainExchange::exchange(const std::vector<std::vector<double>>& send, std::vector<std::vector<double>>& recv) {

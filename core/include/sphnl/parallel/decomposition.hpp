@@ -43,6 +43,22 @@ class KeyPartition {
 /// there is no weight at all).
 double imbalance(std::span<const double> rank_weights);
 
+/// Estimated pair work of each key in [key_begin, key_end), the weights that
+/// balance ranks by interactions (BalanceBy::interactions). With cells of side
+/// >= the interaction radius a cell's particles meet those of the 27 cells
+/// around it (itself included), and every such candidate pair costs a
+/// distance test and, inside the radius, the pair kernel; boundary-boundary
+/// pairs never reach the kernel, so
+///   w_k = f_k (F_k + B_k) + b_k F_k,
+/// f_k and b_k the fluid and boundary particles of cell k, F_k and B_k those
+/// of its stencil (wrapped across a periodic y seam). A pair counts in both of
+/// its cells, as a pair across a rank boundary is computed on both sides.
+/// `fluid` and `boundary` hold the counts per key; out[k] outside the range is
+/// left as it is.
+void interaction_weights(const CellGrid& grid, const CellOrder& order, std::span<const double> fluid,
+                         std::span<const double> boundary, std::uint32_t key_begin, std::uint32_t key_end,
+                         std::span<double> out);
+
 /// Which cells each rank needs from the others: with cells of side >= the
 /// interaction radius (2h for the cell-linked list, 2H for Verlet lists), every
 /// partner of a particle lies in its cell or one of the 26 around it, so the

@@ -6,8 +6,10 @@
 // cells are 2h for CLL, 2H = 2h + dh for Verlet lists). Pairs across a rank
 // boundary are computed on both sides; each rank integrates only its own
 // particles, so the forces are the serial ones up to summation order.
-//   at a build      ghosts dropped; rebalanced when the ranks' weights differ by
-//                   more than rebalance_threshold (or the cell size changed);
+//   at a build      ghosts dropped; rebalanced when the busiest rank's work
+//                   (balance_by: estimated candidate pairs, or particles) is
+//                   more than (1 + rebalance_threshold) x the mean, or the
+//                   cell size changed;
 //                   particles that left the rank's cells migrate (CLL: every
 //                   step); the new ghosts arrive (x, v, rho, mass, type, id)
 //   between builds  the same ghosts, only x, v, rho travel (Verlet lists)
@@ -31,10 +33,10 @@ namespace sphnl {
 class DomainExchange final : public DistributedNeighbours {
  public:
   DomainExchange(Communicator& comm, const PhysicsParams& phys, const Box& domain, double period_y,
-                 CellOrderKind order, double rebalance_threshold);
+                 CellOrderKind order, double rebalance_threshold, BalanceBy balance = BalanceBy::interactions);
 
   /// Keeps of the full particle set (the same on every rank) the particles of
-  /// this rank's share of cells of side `cell`, balanced by weight. Throws
+  /// this rank's share of cells of side `cell`, balanced by work. Throws
   /// ConfigError when there are more ranks than cells.
   void distribute(ParticleSet& ps, double cell);
 
@@ -64,6 +66,9 @@ class DomainExchange final : public DistributedNeighbours {
   const KeyPartition& partition() const { return partition_; }
   /// Particles that arrived from other ranks (migration), in total.
   std::uint64_t migrated() const { return migrated_; }
+  /// This rank's estimated pair work at the last build (interaction_weights
+  /// over its own cells, counting its ghosts); 0 when balancing by particles.
+  double work_estimate() const { return work_estimate_; }
   /// VL_X rebuilds this rank took only because another rank's particles moved more than dh/2.
   std::uint64_t remote_rebuilds() const { return remote_rebuilds_; }
 
@@ -75,20 +80,27 @@ class DomainExchange final : public DistributedNeighbours {
   void set_cell_size(double cell);
   void compute_keys(const ParticleSet& ps);
   void check_cells() const;
-  /// Weight of each key of the owned particles.
-  std::vector<double> key_weights(const ParticleSet& ps) const;
+  /// Work of every key of the domain; `reduce`: the particles are this rank's
+  /// own (counts summed over ranks), else every rank holds all of them.
+  std::vector<double> key_weights(const ParticleSet& ps, bool reduce);
+  /// This rank's interaction_weights, from its own particles and its ghosts.
+  double local_work_estimate(const ParticleSet& ps);
   void repartition(const ParticleSet& ps);
   void migrate(ParticleSet& ps);
   void send_ghosts(ParticleSet& ps);
   void exchange(const std::vector<std::vector<double>>& send, std::vector<std::vector<double>>& recv);
   /// Sends `fields` of the particles in send_index_ and writes them to the ghosts of recv_index_.
-  void refresh(ParticleSet& ps, std::span<std::vector<double>* const> fields);
+  void refresh(std::span<std::vector<double>* const> fields);
 
   Communicator& comm_;
   const PhysicsParams& phys_;
   Box domain_;
   double period_y_;
   double threshold_;
+  BalanceBy balance_;
+  double work_estimate_ = 0;
+  std::vector<double> fluid_count_, boundary_count_, key_work_;  // per key (balance_by interactions)
+  std::vector<std::uint32_t> ghost_keys_;
   int rank_, ranks_;
   CellGrid grid_;
   std::unique_ptr<CellOrder> order_;
