@@ -642,6 +642,16 @@ def mpi_balanced_2ranks_vs_2threads(med, c):
     return threads / _one(rows, balance_by="interactions"), f"{note}; speed of 2 ranks over 2 threads, CLL", related
 
 
+@claim("mpi_balanced_communication_share")
+def mpi_balanced_communication_share(med, c):
+    """Communication share of the step (slowest rank, waits included), CLL on 2 ranks x 1 thread cut by interactions."""
+    n, note, rows = _balance_rows(med, c)
+    if "communication_share" not in rows:
+        raise NotMeasured("no communication_share counter in the results")
+    related = {"by_particles_pct": 100 * _one(rows, "communication_share", balance_by="particles")}
+    return 100 * _one(rows, "communication_share", balance_by="interactions"), f"{note}; CLL, 2 ranks x 1 thread", related
+
+
 # ------------------------------------------------------------------ verdicts
 def validate_claim(c, where):
     """Every band two-sided, finite, reproduced inside partly, with a reason."""

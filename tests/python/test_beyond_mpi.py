@@ -227,6 +227,9 @@ class BalanceWithStandIn(unittest.TestCase):
         t = self.claim("mpi_balanced_2ranks_vs_2threads")
         self.assertAlmostEqual(t["value"], 1 / (1.01 * 1.05), places=6)
         self.assertAlmostEqual(t["related"]["by_particles_ratio"]["value"], 1 / (1.08 * 1.05), places=6)
+        share = self.claim("mpi_balanced_communication_share")
+        self.assertAlmostEqual(share["value"], 100 * 0.05 / 1.05, places=6)
+        self.assertEqual(share["verdict"], "reproduced")
 
 
 @unittest.skipUnless(os.environ.get("SPHNL_BUILD_DIR") and shutil.which("mpirun"),
