@@ -84,16 +84,18 @@ def step_seconds(p):
 
 
 def search_seconds(p):
-    """Cost model of one repetition of a `search` point: the timed list build
-    plus the untimed build each repetition starts with (the pair-set check).
-    A build costs 0.5 us a point for sphnl on one core and 25x that for
+    """Cost model of one repetition of a `search` point: the timed list build,
+    plus (call: warm) the untimed build that warms the buffers up; a first
+    call's timed lists are checked themselves. A build costs 0.5 us a point for sphnl on one core and 25x that for
     nanoflann (the ratio the default run's `peers` measured); with these the
     model gives the measured rounds of `peers`: 118 s against 2.0-2.7 min at
     the default size, 1 530 s against 24 min 29 s for a FULL round (one
-    round, 3 December 2026), the time around the calls included."""
+    round, 3 December 2026, when a first call also made an untimed build),
+    the time around the calls included."""
     one = 5e-7 * p["particles"] * (25 if p.get("impl", "sphnl") == "nanoflann" else 1)
     threads = p.get("threads", 1)
-    return 2 * (one / (0.9 * threads) if threads > 1 else one)
+    calls = 1 if p.get("call", "warm") == "first" else 2
+    return calls * (one / (0.9 * threads) if threads > 1 else one)
 
 
 ROUND_OVERHEAD_S = 0.3  # bench start, snapshot load, JSON
