@@ -322,6 +322,34 @@ int run_main(int argc, char** argv) {
   auto snapshot = [&] {
     Stopwatch sw;
     const std::string stem = snapshot_stem(sim.steps_done());
+    if (comm && config.snapshot_pieces == SnapshotPieces::per_rank) {
+      // No gather (rank 0 need not hold every particle): each rank writes a
+      // piece of its own particles, rank 0 the .pvtu naming them all.
+      auto piece = [&](int r) {
+        char name[32];
+        std::snprintf(name, sizeof name, "_rank%04d.vtu", r);
+        return stem + name;
+      };
+      SnapshotEntry e{sim.steps_done(), sim.time(), "snapshots/" + stem + ".pvtu", ""};
+      snapshots.push_back(e);
+      std::string error;
+      try {
+        write_vtu(snap_dir / piece(comm->rank()), sim.particles(), sim.time(), sim.owned());
+      } catch (const std::exception& ex) {
+        error = "rank " + std::to_string(comm->rank()) + ": " + ex.what();
+      }
+      // Every rank stops together when one could not write its piece.
+      if (comm->any(!error.empty()))
+        throw std::runtime_error(error.empty() ? "another rank could not write its snapshot piece" : error);
+      if (root) {
+        std::vector<std::string> pieces;
+        for (int r = 0; r < comm->size(); ++r) pieces.push_back(piece(r));
+        write_pvtu(out_dir / e.vtu, pieces);
+        write_pvd(out_dir / "snapshots.pvd", snapshots);
+      }
+      output_seconds += sw.lap();
+      return;
+    }
     SnapshotEntry e{sim.steps_done(), sim.time(), "snapshots/" + stem + ".vtu", "snapshots/" + stem + ".csv"};
     snapshots.push_back(e);
     if (comm) {  // rank 0 writes every rank's particles, in id order as ever
@@ -362,7 +390,11 @@ int run_main(int argc, char** argv) {
     s["status"] = status;
     s["wall_time_s"]["output"] = output_seconds;
     json snaps = json::array();
-    for (const auto& e : snapshots) snaps.push_back({{"step", e.step}, {"time", e.time}, {"vtu", e.vtu}, {"csv", e.csv}});
+    for (const auto& e : snapshots) {
+      json entry = {{"step", e.step}, {"time", e.time}, {"vtu", e.vtu}};
+      if (!e.csv.empty()) entry["csv"] = e.csv;  // snapshot_pieces=per_rank writes no CSV
+      snaps.push_back(entry);
+    }
     s["snapshots"] = snaps;
     write_json(out_dir / "summary.json", s);
   };

@@ -23,6 +23,7 @@ constexpr std::array kOnOffNames{"on", "off"};
 constexpr std::array kThreadUpdateNames{"private", "phased"};
 constexpr std::array kPrecisionNames{"double", "mixed"};
 constexpr std::array kBalanceNames{"interactions", "particles"};
+constexpr std::array kSnapshotPiecesNames{"gathered", "per_rank"};
 
 template <class Names>
 std::string join(const Names& names) {
@@ -88,6 +89,8 @@ const std::vector<Key>& key_table() {
        [](const RunConfig& c) { return json(c.end_time); }},
       {"output_interval", [](RunConfig& c, const json& v) { c.output_interval = get_number("output_interval", v, 0, 1e4, false); },
        [](const RunConfig& c) { return json(c.output_interval); }},
+      {"snapshot_pieces", [](RunConfig& c, const json& v) { c.snapshot_pieces = get_enum<SnapshotPieces>("snapshot_pieces", v, kSnapshotPiecesNames); },
+       [](const RunConfig& c) { return json(to_string(c.snapshot_pieces)); }},
       {"h_coefficient", [](RunConfig& c, const json& v) { c.h_coefficient = get_number("h_coefficient", v, 0.3, 3.0, false); },
        [](const RunConfig& c) { return json(c.h_coefficient); }},
       {"cfl", [](RunConfig& c, const json& v) { c.cfl = get_number("cfl", v, 0, 1.0, true); },
@@ -156,6 +159,7 @@ const std::vector<Key>& key_table() {
 }  // namespace
 
 const char* to_string(Lattice l) { return kLatticeNames[static_cast<int>(l)]; }
+const char* to_string(SnapshotPieces p) { return kSnapshotPiecesNames[static_cast<int>(p)]; }
 
 std::vector<std::string> config_keys() {
   std::vector<std::string> keys;

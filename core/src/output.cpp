@@ -61,8 +61,8 @@ void ensure_writable_directory(const fs::path& dir) {
   fs::remove(probe, ec);
 }
 
-std::vector<std::uint32_t> id_order(const ParticleSet& ps) {
-  std::vector<std::uint32_t> order(ps.size());
+std::vector<std::uint32_t> id_order(const ParticleSet& ps, std::size_t count) {
+  std::vector<std::uint32_t> order(std::min(count, ps.size()));
   std::iota(order.begin(), order.end(), 0u);
   std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return ps.id[a] < ps.id[b]; });
   return order;
@@ -102,9 +102,9 @@ void write_data_array(std::ostream& out, const AppendedArray& a, std::uint64_t o
 
 }  // namespace
 
-void write_vtu(const fs::path& path, const ParticleSet& ps, double time) {
+void write_vtu(const fs::path& path, const ParticleSet& ps, double time, std::size_t count) {
   static_assert(std::endian::native == std::endian::little, "the VTU writer declares LittleEndian");
-  const std::vector<std::uint32_t> order = id_order(ps);
+  const std::vector<std::uint32_t> order = id_order(ps, count);
   const std::size_t n = order.size();
   std::vector<double> points(3 * n), velocity(3 * n), density(n), pressure(n);
   std::vector<std::int32_t> type(n), id(n);
@@ -163,6 +163,25 @@ void write_vtu(const fs::path& path, const ParticleSet& ps, double time) {
     emit(pts);
     for (const auto& a : cells) emit(a);
     out << "\n  </AppendedData>\n</VTKFile>\n";
+  });
+}
+
+void write_pvtu(const fs::path& path, const std::vector<std::string>& pieces) {
+  write_file_atomically(path, [&](std::ostream& out) {
+    // The arrays of write_vtu, by name, type and components (the pieces hold the data).
+    out << "<?xml version=\"1.0\"?>\n"
+        << "<VTKFile type=\"PUnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n"
+        << "  <PUnstructuredGrid GhostLevel=\"0\">\n"
+        << "    <PPointData Scalars=\"density\" Vectors=\"velocity\">\n"
+        << "      <PDataArray type=\"Float64\" Name=\"velocity\" NumberOfComponents=\"3\"/>\n"
+        << "      <PDataArray type=\"Float64\" Name=\"density\" NumberOfComponents=\"1\"/>\n"
+        << "      <PDataArray type=\"Float64\" Name=\"pressure\" NumberOfComponents=\"1\"/>\n"
+        << "      <PDataArray type=\"Int32\" Name=\"type\" NumberOfComponents=\"1\"/>\n"
+        << "      <PDataArray type=\"Int32\" Name=\"id\" NumberOfComponents=\"1\"/>\n"
+        << "    </PPointData>\n"
+        << "    <PPoints>\n      <PDataArray type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\"/>\n    </PPoints>\n";
+    for (const auto& piece : pieces) out << "    <Piece Source=\"" << piece << "\"/>\n";
+    out << "  </PUnstructuredGrid>\n</VTKFile>\n";
   });
 }
 

@@ -4,7 +4,9 @@
 Each case runs the small dam break serially (no mpirun) and with P ranks, and
 checks what a user sees: the same particles (ids and types) and total mass,
 positions within 1e-8 m after 30 steps (20 with KGC, 10 for the gridders), the t = 0 snapshot files identical
-byte for byte, and the distributed fields of summary.json. Exit status 77
+byte for byte, and the distributed fields of summary.json. The `pieces` case
+checks snapshot_pieces=per_rank (a .vtu piece per rank and a .pvtu) against
+the gathered snapshots of the same run. Exit status 77
 tells ctest the case was skipped (no MPI, no mpirun), with the reason printed.
 """
 import argparse
@@ -110,6 +112,66 @@ def compare(serial_dir, dist_dir, ranks):
     return problems, b
 
 
+def read_vtu_points(path):
+    """{id: (x, y, z)} of a .vtu that write_vtu wrote (raw appended binary,
+    UInt64 headers): the DataArray offsets point past the '_' of AppendedData."""
+    import re
+    import struct
+    data = path.read_bytes()
+    start = data.index(b'<AppendedData encoding="raw">')
+    base = data.index(b"_", start) + 1
+    arrays = {}
+    for m in re.finditer(rb'<DataArray type="(\w+)" Name="(\w+)"[^>]*offset="(\d+)"', data[:start]):
+        kind, name, offset = m.group(1).decode(), m.group(2).decode(), int(m.group(3))
+        at = base + offset
+        size = struct.unpack_from("<Q", data, at)[0]
+        code = {"Float64": "d", "Int32": "i", "Int64": "q", "UInt8": "B"}[kind]
+        arrays[name] = struct.unpack_from(f"<{size // struct.calcsize(code)}{code}", data, at + 8)
+    pts, ids = arrays["Points"], arrays["id"]
+    return {ids[k]: pts[3 * k:3 * k + 3] for k in range(len(ids))}
+
+
+def pieces_against_gathered(args, ranks):
+    """snapshot_pieces=per_rank on `ranks` ranks against the gathered
+    snapshots of the same run: each final .pvtu names one existing piece per
+    rank, the pieces hold every particle once, at the gathered positions."""
+    import re
+    work = Path(args.work) / "pieces"
+    sets = BASE[:1] + ["steps=10", "output_interval=1.0"]
+    gathered, per_rank = work / "gathered", work / "per_rank"
+    sphnl_run(args, gathered, sets, args.mpirun, ranks)
+    sphnl_run(args, per_rank, sets + ["snapshot_pieces=per_rank"], args.mpirun, ranks)
+    a = json.loads((gathered / "summary.json").read_text())
+    b = json.loads((per_rank / "summary.json").read_text())
+    problems = []
+    if [s["step"] for s in a["snapshots"]] != [s["step"] for s in b["snapshots"]]:
+        problems.append("the two runs wrote snapshots at different steps")
+    if any("csv" in s for s in b["snapshots"]):
+        problems.append("snapshot_pieces=per_rank lists CSV files it does not write")
+    for snap_a, snap_b in zip(a["snapshots"], b["snapshots"]):
+        pvtu = per_rank / snap_b["vtu"]
+        if pvtu.suffix != ".pvtu" or not pvtu.is_file():
+            problems.append(f"no .pvtu for step {snap_b['step']}: {snap_b['vtu']}")
+            continue
+        sources = re.findall(r'<Piece Source="([^"]+)"/>', pvtu.read_text())
+        if len(sources) != ranks:
+            problems.append(f"{pvtu.name} names {len(sources)} pieces, expected {ranks}")
+        merged = {}
+        for src in sources:
+            part = read_vtu_points(pvtu.parent / src)
+            if set(part) & set(merged):
+                problems.append(f"{src}: particles that another piece also holds")
+            merged.update(part)
+        whole = read_vtu_points(gathered / snap_a["vtu"])
+        if merged != whole:
+            problems.append(f"step {snap_b['step']}: the pieces hold {len(merged)} particles, the gathered "
+                            f"snapshot {len(whole)}, or other positions")
+    if '.pvtu"' not in (per_rank / "snapshots.pvd").read_text():
+        problems.append("snapshots.pvd does not name the .pvtu files")
+    print(f"  {ranks} ranks: {len(b['snapshots'])} snapshots of {ranks} pieces each")
+    return problems
+
+
 def against_serial(args, name, sets, ranks_list):
     work = Path(args.work) / name
     serial = work / "serial"
@@ -186,6 +248,8 @@ def main():
         failures += f
         if summaries[8]["fluid_per_rank"]["min"] != 0:
             failures.append(f"expected a rank without fluid, got fluid_per_rank {summaries[8]['fluid_per_rank']}")
+    elif args.case == "pieces":
+        failures += pieces_against_gathered(args, 3)
     elif args.case == "bad_ranks":
         # particles=200 with h_coefficient=3: a grid of 27 cells of 2h (the domain has a margin of 2h).
         out = Path(args.work) / "bad_ranks"

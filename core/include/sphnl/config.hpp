@@ -15,8 +15,13 @@
 namespace sphnl {
 
 enum class Lattice : std::uint8_t { bcc, cubic };
+/// Snapshots of a run on several ranks: `gathered` (rank 0 writes every
+/// particle in id order: the serial files) or `per_rank` (each rank a .vtu
+/// piece of its own particles, rank 0 a .pvtu naming them; no gather, no CSV).
+enum class SnapshotPieces : std::uint8_t { gathered, per_rank };
 
 const char* to_string(Lattice l);
+const char* to_string(SnapshotPieces p);
 
 struct RunConfig {
   // size: exactly one of particles / dx is used (dx > 0 wins when set)
@@ -26,6 +31,7 @@ struct RunConfig {
   long steps = 0;
   double end_time = 0.5;
   double output_interval = 0.05;  // simulated seconds between snapshots; 0 = final only
+  SnapshotPieces snapshot_pieces = SnapshotPieces::gathered;  // several ranks only
   // physics (docs/PHYSICS.md)
   double h_coefficient = 0.866025;
   double cfl = 0.3;

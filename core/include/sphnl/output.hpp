@@ -3,6 +3,7 @@
 // file is written to a temporary name in the same directory and renamed into
 // place, so an interrupted run never leaves a truncated file under a final name.
 #include <cstdint>
+#include <cstddef>
 #include <filesystem>
 #include <functional>
 #include <ostream>
@@ -24,9 +25,10 @@ void write_file_atomically(const std::filesystem::path& path, const std::functio
 /// Throws std::runtime_error naming the directory and the reason otherwise.
 void ensure_writable_directory(const std::filesystem::path& dir);
 
-/// Memory indices of the particles sorted by ParticleSet::id (outputs are
-/// reported in id order whatever the reordering did to memory order).
-std::vector<std::uint32_t> id_order(const ParticleSet& ps);
+/// Memory indices of the first `count` particles (all by default) sorted by
+/// ParticleSet::id (outputs are reported in id order whatever the reordering
+/// did to memory order).
+std::vector<std::uint32_t> id_order(const ParticleSet& ps, std::size_t count = SIZE_MAX);
 
 /// Name of a particle type in outputs: "fluid", "boundary" or "out".
 const char* type_name(ParticleType t);
@@ -34,8 +36,14 @@ const char* type_name(ParticleType t);
 /// VTK XML UnstructuredGrid, one VTK_VERTEX cell per particle, raw appended
 /// binary (little endian, UInt64 headers). PointData: velocity (3 components),
 /// density, pressure, type (Int32: 0 fluid, 1 boundary, 2 out), id (Int32).
-/// `time` is stored as the TimeValue field data.
-void write_vtu(const std::filesystem::path& path, const ParticleSet& ps, double time);
+/// `time` is stored as the TimeValue field data. `count`: only the first
+/// `count` particles (a rank's own, not the ghosts after them).
+void write_vtu(const std::filesystem::path& path, const ParticleSet& ps, double time, std::size_t count = SIZE_MAX);
+
+/// VTK XML PUnstructuredGrid naming the .vtu `pieces` (paths relative to the
+/// .pvtu's folder) that write_vtu wrote, one per rank: ParaView reads them as
+/// one data set.
+void write_pvtu(const std::filesystem::path& path, const std::vector<std::string>& pieces);
 
 /// CSV with columns id,type,x,y,z,vx,vy,vz,rho,p in id order; `type` is
 /// `fluid` or `boundary` (fluid particles that left the domain are `fluid`).
