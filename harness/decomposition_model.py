@@ -26,13 +26,15 @@ pairs, and its compute is the serial step's time in proportion: serial
 seconds x (its pairs) / (the serial run's pairs).
 
 Communication per step, one term per call of the code (core/mpi/ranks_mpi.cpp:
-`exchange` is MPI_Alltoall of the counts + MPI_Alltoallv; `sum` is an
-MPI_Allgather, summed in rank order; `max` an MPI_Allreduce):
+`exchange` is MPI_Alltoall of the counts + MPI_Alltoallv, `exchange_with`
+point-to-point messages with the partner ranks; `sum` is an MPI_Allgather,
+summed in rank order; `max` an MPI_Allreduce):
   CLL (a build every step): the rebalance check sums a P-vector, then two
-  exchanges (migration, ghosts: 10 doubles per ghost), max of 3 values
+  exchanges (migration, all-to-all; ghosts, with the partners: 10 doubles
+  per ghost), max of 3 values
   (dt, eq. 7), max (V_max) and sum (lost) in the update;
-  VL_X between builds: one max (the rebuild vote), one exchange (ghost
-  refresh: 7 doubles per ghost), the same three reductions.
+  VL_X between builds: one max (the rebuild vote), one exchange with the
+  partners (ghost refresh: 7 doubles per ghost), the same three reductions.
 The network: a message of b bytes costs `latency` + b / `bandwidth`; an
 all-to-all (pairwise, as OpenMPI's for these sizes) costs P - 1 messages on
 every rank; an allreduce or allgather of b bytes per rank log2(P) latencies
@@ -393,7 +395,7 @@ def allgather_s(ranks, nbytes_each, latency, bandwidth):
 
 
 def step_terms(row, s_per_particle_step, lst="cll", latency=LATENCY_S, bandwidth=BANDWIDTH_BPS,
-               exchange="alltoall"):
+               exchange="code"):
     """Seconds per step of the busiest rank, by term. Compute: the measured
     serial step (s_per_particle_step x N) times the rank's share of the
     serial run's pairs: its own pairs plus the pairs with a ghost, which
@@ -401,9 +403,16 @@ def step_terms(row, s_per_particle_step, lst="cll", latency=LATENCY_S, bandwidth
     The per-particle parts of the step (integration, the cell sort) are
     spread in the same proportion: an approximation that holds while the
     pair pass dominates the step.
-    exchange="neighbour": the exchanges as MPI_Neighbor_alltoallv over the
-    ranks that share a ghost layer (`partners_max` messages instead of P - 1,
-    no count all-to-all: the counts are known from the send lists)."""
+    exchange: "code", as the code exchanges (core/mpi/ranks_mpi.cpp): the
+    migration an all-to-all (MPI_Alltoall of the counts + MPI_Alltoallv: P - 1
+    messages), the ghosts and their refreshes point to point with the
+    `partners_max` ranks that share a ghost layer, a count and a data message
+    each; "alltoall": every exchange an all-to-all (the code before its
+    neighbour exchange); "neighbour": every exchange, migration included,
+    with the partners only and one message each (as MPI_Neighbor_alltoallv
+    with the counts known from the send lists)."""
+    if exchange not in ("code", "alltoall", "neighbour"):
+        raise ModelError(f"exchange {exchange!r}: the model has code, alltoall and neighbour")
     p = row["P"]
     per_pair = s_per_particle_step * row["N"] / row["pairs_serial"]
     terms = {"compute": per_pair * (row["pairs_own"] + (row["pairs_cross"] if p > 1 else 0))}
@@ -412,10 +421,13 @@ def step_terms(row, s_per_particle_step, lst="cll", latency=LATENCY_S, bandwidth
     doubles = GHOST_DOUBLES if lst == "cll" else REFRESH_DOUBLES
     exchanges = 2 if lst == "cll" else 1  # CLL: migration + ghosts; VL_X between builds: the refresh
     ghost_bytes = row["ghosts_max"] * doubles * 8
+    partners = row.get("partners_max", p - 1)
     if exchange == "neighbour":
-        terms["exchange_latency"] = exchanges * row.get("partners_max", p - 1) * latency
-    else:
+        terms["exchange_latency"] = exchanges * partners * latency
+    elif exchange == "alltoall":
         terms["exchange_latency"] = exchanges * alltoall_s(p, 0, latency, bandwidth)
+    else:  # the migration (CLL) all-to-all, the ghosts (or refresh) 2 messages per partner
+        terms["exchange_latency"] = (exchanges - 1) * alltoall_s(p, 0, latency, bandwidth) + 2 * partners * latency
     terms["exchange_bytes"] = ghost_bytes / bandwidth
     red = allreduce_s(p, 24, latency, bandwidth) + allreduce_s(p, 8, latency, bandwidth) \
         + allgather_s(p, 8, latency, bandwidth) + (allreduce_s(p, 8, latency, bandwidth) if lst != "cll" else 0)
@@ -426,7 +438,7 @@ def step_terms(row, s_per_particle_step, lst="cll", latency=LATENCY_S, bandwidth
 
 
 def project(rows, n_list, ranks_list, s_per_particle_step, lst="cll", latency=LATENCY_S,
-            bandwidth=BANDWIDTH_BPS, exchange="alltoall", order="sort_x"):
+            bandwidth=BANDWIDTH_BPS, exchange="code", order="sort_x"):
     """[{N, P, terms..., step_s, efficiency, extrapolated}] of every (N, P)
     the counts reach (measured or extrapolated in N)."""
     out = []

@@ -119,6 +119,16 @@ TEST(Decomposition, GhostDestinationsAreTheHalosSeenFromTheSender) {
         EXPECT_EQ(std::vector<std::uint32_t>(from_senders[r].begin(), from_senders[r].end()), halo)
             << "rank " << r << " order " << to_string(kind) << " period " << period;
         EXPECT_FALSE(halo.empty());
+        // Neighbour-exchange partners: symmetric, and every rank that sends r a ghost is one.
+        const std::vector<int> mine = d.partners(r);
+        EXPECT_TRUE(std::is_sorted(mine.begin(), mine.end()));
+        EXPECT_EQ(std::count(mine.begin(), mine.end(), r), 0);
+        for (const int q : mine) {
+          const std::vector<int> theirs = d.partners(q);
+          EXPECT_EQ(std::count(theirs.begin(), theirs.end(), r), 1) << r << " lists " << q << " but not back";
+        }
+        for (const std::uint32_t k : halo)
+          EXPECT_EQ(std::count(mine.begin(), mine.end(), p.owner(k)), 1) << "sender of cell " << k;
       }
     }
 }

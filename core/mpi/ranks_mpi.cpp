@@ -57,6 +57,32 @@ class MpiCommunicator final : public Communicator {
     recv.resize(size_);
     for (int q = 0; q < size_; ++q) recv[q].assign(rbuf_.begin() + rdispl[q], rbuf_.begin() + rdispl[q] + rcount[q]);
   }
+  void exchange_with(std::span<const int> partners, const std::vector<std::vector<double>>& send,
+                     std::vector<std::vector<double>>& recv) override {
+    check_partners(partners, send, "sends to");
+    const std::size_t k = partners.size();
+    count_out_.resize(k);
+    count_in_.resize(k);
+    requests_.resize(2 * k);
+    for (std::size_t i = 0; i < k; ++i) count_out_[i] = static_cast<int>(send[partners[i]].size());
+    for (std::size_t i = 0; i < k; ++i) {
+      check(MPI_Irecv(&count_in_[i], 1, MPI_INT, partners[i], kCountTag, MPI_COMM_WORLD, &requests_[i]), "MPI_Irecv");
+      check(MPI_Isend(&count_out_[i], 1, MPI_INT, partners[i], kCountTag, MPI_COMM_WORLD, &requests_[k + i]), "MPI_Isend");
+    }
+    check(MPI_Waitall(static_cast<int>(2 * k), requests_.data(), MPI_STATUSES_IGNORE), "MPI_Waitall");
+    recv.resize(size_);
+    for (auto& r : recv) r.clear();
+    for (std::size_t i = 0; i < k; ++i) {
+      auto& in = recv[partners[i]];
+      in.resize(static_cast<std::size_t>(count_in_[i]));
+      check(MPI_Irecv(in.data(), count_in_[i], MPI_DOUBLE, partners[i], kDataTag, MPI_COMM_WORLD, &requests_[i]),
+            "MPI_Irecv");
+      check(MPI_Isend(send[partners[i]].data(), count_out_[i], MPI_DOUBLE, partners[i], kDataTag, MPI_COMM_WORLD,
+                      &requests_[k + i]),
+            "MPI_Isend");
+    }
+    check(MPI_Waitall(static_cast<int>(2 * k), requests_.data(), MPI_STATUSES_IGNORE), "MPI_Waitall");
+  }
   void gather(std::span<const double> mine, std::vector<std::vector<double>>& at_root) override {
     int n = static_cast<int>(mine.size());
     std::vector<int> counts(size_), displ(size_);
@@ -75,8 +101,11 @@ class MpiCommunicator final : public Communicator {
   using Communicator::sum;
 
  private:
+  static constexpr int kCountTag = 17, kDataTag = 18;
   int rank_ = 0, size_ = 1;
   std::vector<double> sbuf_, rbuf_;
+  std::vector<int> count_out_, count_in_;
+  std::vector<MPI_Request> requests_;
 };
 
 }  // namespace

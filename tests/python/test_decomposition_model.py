@@ -116,11 +116,16 @@ class Terms(unittest.TestCase):
         self.assertAlmostEqual(t["compute"], 1e-3)  # the serial step
 
     def test_terms_follow_the_calls_of_the_code(self):
-        t = D.step_terms(self.ROW, 1e-6, latency=1e-6, bandwidth=1e9)
+        t = D.step_terms(self.ROW, 1e-6, latency=1e-6, bandwidth=1e9, exchange="alltoall")
         # the serial step (64 ms) times the rank's share of the serial pairs, its cross pairs included
         self.assertAlmostEqual(t["compute"], 64e-3 * 40_000 / 2_000_000)
         # 2 exchanges x (alltoall of the counts + alltoallv): P - 1 messages each, 4 B a count
         self.assertAlmostEqual(t["exchange_latency"], 2 * (2 * 63 * 1e-6 + 4 * 63 / 1e9))
+        # as the code exchanges: the migration all-to-all, the ghosts a count and a data message per partner
+        code = D.step_terms({**self.ROW, "partners_max": 2}, 1e-6, latency=1e-6, bandwidth=1e9)
+        self.assertAlmostEqual(code["exchange_latency"], 2 * 63 * 1e-6 + 4 * 63 / 1e9 + 2 * 2 * 1e-6)
+        with self.assertRaisesRegex(D.ModelError, "exchange 'mpi'"):
+            D.step_terms(self.ROW, 1e-6, exchange="mpi")
         self.assertAlmostEqual(t["exchange_bytes"], 500 * 80 / 1e9)
         self.assertAlmostEqual(t["rank_vector_sum"], 6e-6 + 63 * 8 * 64 / 1e9)
         nb = D.step_terms({**self.ROW, "partners_max": 2}, 1e-6, latency=1e-6, bandwidth=1e9, exchange="neighbour")

@@ -100,4 +100,12 @@ std::vector<std::uint32_t> Decomposition::halo_cells(int rank) const {
   return halo;
 }
 
+std::vector<int> Decomposition::partners(int rank) const {
+  std::vector<int> out;
+  for (const std::uint32_t key : halo_cells(rank)) out.push_back(partition_->owner(key));
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
 }  // namespace sphnl

@@ -55,6 +55,7 @@ DomainExchange::DomainExchange(Communicator& comm, const PhysicsParams& phys, co
 void DomainExchange::set_cell_size(double cell) {
   grid_ = CellGrid(domain_, cell, period_y_);
   order_->setup(grid_);
+  partners_stale_ = true;
 }
 
 void DomainExchange::compute_keys(const ParticleSet& ps) {
@@ -114,6 +115,7 @@ double DomainExchange::local_work_estimate(const ParticleSet& ps) {
 void DomainExchange::repartition(const ParticleSet& ps) {
   check_cells();
   partition_ = KeyPartition::balanced(key_weights(ps, true), ranks_);
+  partners_stale_ = true;
   ++partitions_;
 }
 
@@ -124,6 +126,7 @@ void DomainExchange::distribute(ParticleSet& ps, double cell) {
   check_cells();
   // Every rank holds the same full set here: the weights need no reduction.
   partition_ = KeyPartition::balanced(key_weights(ps, false), ranks_);
+  partners_stale_ = true;
   ++partitions_;
   std::size_t kept = 0;
   std::vector<double> record;
@@ -205,6 +208,10 @@ void DomainExchange::migrate(ParticleSet& ps) {
 
 void DomainExchange::send_ghosts(ParticleSet& ps) {
   const Decomposition dec(grid_, *order_, partition_);
+  if (partners_stale_) {
+    partners_ = dec.partners(rank_);
+    partners_stale_ = false;
+  }
   for (int q = 0; q < ranks_; ++q) {
     send_[q].clear();
     send_index_[q].clear();
@@ -223,7 +230,7 @@ void DomainExchange::send_ghosts(ParticleSet& ps) {
       send_index_[q].push_back(static_cast<std::uint32_t>(i));
     }
   }
-  exchange(send_, recv_);
+  exchange(send_, recv_, true);
   for (const auto& r : recv_) ghosts_ += r.size() / kGhostFields;
   ps.resize(owned_ + ghosts_);
   std::size_t at = owned_;
@@ -256,7 +263,7 @@ void DomainExchange::refresh(std::span<std::vector<double>* const> fields) {
     for (const std::uint32_t i : send_index_[q])
       for (const auto* f : fields) send_[q].push_back((*f)[i]);
   }
-  exchange(send_, recv_);
+  exchange(send_, recv_, true);
   for (int q = 0; q < ranks_; ++q) {
     const double* r = recv_[q].data();
     for (const std::uint32_t i : recv_index_[q]) {
@@ -277,11 +284,15 @@ void DomainExchange::refresh_kgc(ParticleSet& ps) {
   refresh(fields);
 }
 
-void DomainExchange::exchange(const std::vector<std::vector<double>>& send, std::vector<std::vector<double>>& recv) {
+void DomainExchange::exchange(const std::vector<std::vector<double>>& send, std::vector<std::vector<double>>& recv,
+                              bool neighbours) {
   for (int q = 0; q < ranks_; ++q)
     if (q != rank_) bytes_sent_ += send[q].size() * sizeof(double);
   Stopwatch sw;
-  comm_.exchange(send, recv);
+  if (neighbours)
+    comm_.exchange_with(partners_, send, recv);
+  else
+    comm_.exchange(send, recv);
   comm_seconds_ += sw.lap();
 }
 

@@ -74,6 +74,11 @@ class Decomposition {
   /// Keys of the cells rank `rank` receives as ghosts (next to one of its cells,
   /// owned by another rank), sorted.
   std::vector<std::uint32_t> halo_cells(int rank) const;
+  /// The ranks owning a cell next to one of `rank`'s cells, occupied or not
+  /// (the owners of its halo cells), sorted: its neighbour-exchange partners.
+  /// Symmetric (q is r's partner exactly when r is q's), and a superset of
+  /// every destination ghost_destinations gives `rank`'s cells.
+  std::vector<int> partners(int rank) const;
 
  private:
   const CellGrid* grid_;

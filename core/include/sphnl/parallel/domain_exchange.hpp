@@ -69,6 +69,8 @@ class DomainExchange final : public DistributedNeighbours {
   /// This rank's estimated pair work at the last build (interaction_weights
   /// over its own cells, counting its ghosts); 0 when balancing by particles.
   double work_estimate() const { return work_estimate_; }
+  /// The ranks this rank exchanges ghosts with (see Decomposition::partners).
+  const std::vector<int>& partners() const { return partners_; }
   /// VL_X rebuilds this rank took only because another rank's particles moved more than dh/2.
   std::uint64_t remote_rebuilds() const { return remote_rebuilds_; }
 
@@ -88,7 +90,10 @@ class DomainExchange final : public DistributedNeighbours {
   void repartition(const ParticleSet& ps);
   void migrate(ParticleSet& ps);
   void send_ghosts(ParticleSet& ps);
-  void exchange(const std::vector<std::vector<double>>& send, std::vector<std::vector<double>>& recv);
+  /// All-to-all (migration: after a re-cut a particle may go to any rank), or,
+  /// with `neighbours`, with partners_ only (ghosts and their refreshes).
+  void exchange(const std::vector<std::vector<double>>& send, std::vector<std::vector<double>>& recv,
+                bool neighbours = false);
   /// Sends `fields` of the particles in send_index_ and writes them to the ghosts of recv_index_.
   void refresh(std::span<std::vector<double>* const> fields);
 
@@ -101,6 +106,8 @@ class DomainExchange final : public DistributedNeighbours {
   double work_estimate_ = 0;
   std::vector<double> fluid_count_, boundary_count_, key_work_;  // per key (balance_by interactions)
   std::vector<std::uint32_t> ghost_keys_;
+  std::vector<int> partners_;   // Decomposition::partners of this rank, for partition_ on grid_
+  bool partners_stale_ = true;  // partition_ or grid_ changed since partners_ was made
   int rank_, ranks_;
   CellGrid grid_;
   std::unique_ptr<CellOrder> order_;
