@@ -71,10 +71,12 @@ def launcher(mpirun, ranks, threads, cores):
 def run_command(args, point, steps, out_dir):
     pre, binding = launcher(args.mpirun, point["ranks"], point["threads"], os.cpu_count() or 1)
     cmd = pre + [str(args.sphnl), "run", "--quiet", "--overwrite", "--out", str(out_dir)]
-    for key, value in (("particles", point["particles"]), ("steps", steps), ("output_interval", 0),
-                       ("progress", "false"), ("list", point["list"]), ("list_steps", point["list_steps"]),
-                       ("threads", point["threads"])) + ((("balance_by", point["balance_by"]),)
-                                                        if "balance_by" in point else ()):
+    settings = [("particles", point["particles"]), ("steps", steps), ("output_interval", 0),
+                ("progress", "false"), ("list", point["list"]), ("list_steps", point["list_steps"]),
+                ("threads", point["threads"])]
+    if "balance_by" in point:  # optional axis
+        settings.append(("balance_by", point["balance_by"]))
+    for key, value in settings:
         cmd += ["--set", f"{key}={R.format_value(value)}"]
     return cmd, binding
 

@@ -80,6 +80,31 @@ class Progress {
   double elapsed_ = 0, last_print_ = -1;
 };
 
+/// snapshot_pieces=per_rank: no gather (rank 0 need not hold every
+/// particle); each rank writes a piece of its own particles, rank 0 the
+/// .pvtu at `pvtu` naming them all. Every rank throws when one could not
+/// write its piece.
+void write_snapshot_pieces(Communicator& comm, const Simulation& sim, const fs::path& snap_dir,
+                           const std::string& stem, const fs::path& pvtu) {
+  auto piece = [&](int r) {
+    char name[32];
+    std::snprintf(name, sizeof name, "_rank%04d.vtu", r);
+    return stem + name;
+  };
+  std::string error;
+  try {
+    write_vtu(snap_dir / piece(comm.rank()), sim.particles(), sim.time(), sim.owned());
+  } catch (const std::exception& ex) {
+    error = "rank " + std::to_string(comm.rank()) + ": " + ex.what();
+  }
+  if (comm.any(!error.empty()))
+    throw std::runtime_error(error.empty() ? "another rank could not write its snapshot piece" : error);
+  if (comm.rank() != 0) return;
+  std::vector<std::string> pieces;
+  for (int r = 0; r < comm.size(); ++r) pieces.push_back(piece(r));
+  write_pvtu(pvtu, pieces);
+}
+
 std::string snapshot_stem(long step) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "step_%06ld", step);
@@ -322,46 +347,23 @@ int run_main(int argc, char** argv) {
   auto snapshot = [&] {
     Stopwatch sw;
     const std::string stem = snapshot_stem(sim.steps_done());
-    if (comm && config.snapshot_pieces == SnapshotPieces::per_rank) {
-      // No gather (rank 0 need not hold every particle): each rank writes a
-      // piece of its own particles, rank 0 the .pvtu naming them all.
-      auto piece = [&](int r) {
-        char name[32];
-        std::snprintf(name, sizeof name, "_rank%04d.vtu", r);
-        return stem + name;
-      };
-      SnapshotEntry e{sim.steps_done(), sim.time(), "snapshots/" + stem + ".pvtu", ""};
-      snapshots.push_back(e);
-      std::string error;
-      try {
-        write_vtu(snap_dir / piece(comm->rank()), sim.particles(), sim.time(), sim.owned());
-      } catch (const std::exception& ex) {
-        error = "rank " + std::to_string(comm->rank()) + ": " + ex.what();
-      }
-      // Every rank stops together when one could not write its piece.
-      if (comm->any(!error.empty()))
-        throw std::runtime_error(error.empty() ? "another rank could not write its snapshot piece" : error);
-      if (root) {
-        std::vector<std::string> pieces;
-        for (int r = 0; r < comm->size(); ++r) pieces.push_back(piece(r));
-        write_pvtu(out_dir / e.vtu, pieces);
-        write_pvd(out_dir / "snapshots.pvd", snapshots);
-      }
-      output_seconds += sw.lap();
-      return;
-    }
-    SnapshotEntry e{sim.steps_done(), sim.time(), "snapshots/" + stem + ".vtu", "snapshots/" + stem + ".csv"};
+    const bool pieces = comm && config.snapshot_pieces == SnapshotPieces::per_rank;
+    const SnapshotEntry e{sim.steps_done(), sim.time(), "snapshots/" + stem + (pieces ? ".pvtu" : ".vtu"),
+                          pieces ? "" : "snapshots/" + stem + ".csv"};  // per_rank writes no CSV
     snapshots.push_back(e);
-    if (comm) {  // rank 0 writes every rank's particles, in id order as ever
+    if (pieces) {
+      write_snapshot_pieces(*comm, sim, snap_dir, stem, out_dir / e.vtu);
+    } else if (comm) {  // rank 0 writes every rank's particles, in id order as ever
       const ParticleSet all = gather_particles(*comm, sim.particles(), sim.owned());
-      if (!root) return;
-      write_vtu(out_dir / e.vtu, all, sim.time());
-      write_csv(out_dir / e.csv, all);
+      if (root) {
+        write_vtu(out_dir / e.vtu, all, sim.time());
+        write_csv(out_dir / e.csv, all);
+      }
     } else {
       write_vtu(out_dir / e.vtu, sim.particles(), sim.time());
       write_csv(out_dir / e.csv, sim.particles());
     }
-    write_pvd(out_dir / "snapshots.pvd", snapshots);
+    if (root) write_pvd(out_dir / "snapshots.pvd", snapshots);
     output_seconds += sw.lap();
   };
   auto summary = [&](const std::string& status) {

@@ -92,25 +92,36 @@ def in_process(args, cmd, env, work):
     return fake_sphnl.summary(cmd[1:], ranks), 0.0
 
 
+def run_on_stand_in(spec, progress):
+    """(work folder, results document, rows) of `spec`'s default sweep, 3
+    rounds of 3, run on the stand-in in this process."""
+    tmp = tempfile.mkdtemp(prefix=f"sphnl_{spec['id']}_")
+    out = Path(tmp) / "run" / f"{spec['id']}.json"
+    out.parent.mkdir()
+    exp = json.loads(json.dumps(spec))
+    exp["protocol"]["default"].update(min_rounds=3, max_rounds=3, reps_per_round=3)
+    real, MPI.run_one = MPI.run_one, in_process
+    try:
+        MPI.run(args_for(tmp), exp, out, "[1/1]", dict(os.environ), progress=progress)
+    finally:
+        MPI.run_one = real
+    return tmp, json.loads(out.read_text(encoding="utf-8")), R.load_run(out.parent)
+
+
+def evaluate_claim(spec, cid, rows):
+    c = next(c for c in spec["claims"] if c["id"] == cid)
+    C.validate_claim(c, f"{spec['id']}.json")
+    return C.evaluate(c, rows, resamples=20)
+
+
 class WithStandIn(unittest.TestCase):
     """experiments/beyond_mpi.json's default sweep on the stand-in (in this
     process: 144 runs), then its claims and its figure."""
 
     @classmethod
     def setUpClass(cls):
-        cls.tmp = tempfile.mkdtemp(prefix="sphnl_mpi_kind_")
-        out = Path(cls.tmp) / "run" / "beyond_mpi.json"
-        out.parent.mkdir()
-        exp = json.loads(json.dumps(SPEC))
-        exp["protocol"]["default"].update(min_rounds=3, max_rounds=3, reps_per_round=3)
         cls.messages = []
-        real, MPI.run_one = MPI.run_one, in_process
-        try:
-            MPI.run(args_for(cls.tmp), exp, out, "[1/1]", dict(os.environ), progress=cls.messages.append)
-        finally:
-            MPI.run_one = real
-        cls.doc = json.loads(out.read_text(encoding="utf-8"))
-        cls.rows = R.load_run(out.parent)
+        cls.tmp, cls.doc, cls.rows = run_on_stand_in(SPEC, cls.messages.append)
 
     @classmethod
     def tearDownClass(cls):
@@ -140,9 +151,7 @@ class WithStandIn(unittest.TestCase):
         self.assertEqual(set(self.rows["ranks"]), {1, 2})
 
     def claim(self, cid):
-        c = next(c for c in SPEC["claims"] if c["id"] == cid)
-        C.validate_claim(c, "beyond_mpi.json")
-        return C.evaluate(c, self.rows, resamples=20)
+        return evaluate_claim(SPEC, cid, self.rows)
 
     def test_conjecture_claim_reads_the_gain_at_the_smallest_particles_per_rank(self):
         r = self.claim("vlx_gain_few_particles_per_rank")
@@ -185,18 +194,7 @@ class BalanceWithStandIn(unittest.TestCase):
 
     @classmethod
     def setUpClass(cls):
-        cls.tmp = tempfile.mkdtemp(prefix="sphnl_mpi_balance_")
-        out = Path(cls.tmp) / "run" / "beyond_mpi_balance.json"
-        out.parent.mkdir()
-        exp = json.loads(json.dumps(BALANCE))
-        exp["protocol"]["default"].update(min_rounds=3, max_rounds=3, reps_per_round=3)
-        real, MPI.run_one = MPI.run_one, in_process
-        try:
-            MPI.run(args_for(cls.tmp), exp, out, "[1/1]", dict(os.environ), progress=lambda m: None)
-        finally:
-            MPI.run_one = real
-        cls.doc = json.loads(out.read_text(encoding="utf-8"))
-        cls.rows = R.load_run(out.parent)
+        cls.tmp, cls.doc, cls.rows = run_on_stand_in(BALANCE, lambda m: None)
 
     @classmethod
     def tearDownClass(cls):
@@ -214,9 +212,7 @@ class BalanceWithStandIn(unittest.TestCase):
         self.assertIn(f"balance_by={points[-1]['balance_by']}", cmd)
 
     def claim(self, cid):
-        c = next(c for c in BALANCE["claims"] if c["id"] == cid)
-        C.validate_claim(c, "beyond_mpi_balance.json")
-        return C.evaluate(c, self.rows, resamples=20)
+        return evaluate_claim(BALANCE, cid, self.rows)
 
     def test_claims_read_the_balance_ratio_and_the_pair_counts(self):
         r = self.claim("mpi_balance_by_interactions")

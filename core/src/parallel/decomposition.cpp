@@ -62,7 +62,7 @@ void interaction_weights(const CellGrid& grid, const CellOrder& order, std::span
       out[key] = 0;
       continue;
     }
-    if (coords[key] == CellOrder::kNoCellCoords) continue;
+    // A key holding particles is a real cell (no particle maps to a padding key of kNoCellCoords).
     double stencil_fluid = 0, stencil_boundary = 0;
     for_each_stencil_cell(grid, order, CellOrder::unpack_coords(coords[key]), kFullStencil, [&](std::uint32_t k, double) {
       stencil_fluid += fluid[k];

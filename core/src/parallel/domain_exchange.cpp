@@ -71,45 +71,45 @@ void DomainExchange::check_cells() const {
                       " m: every rank must own at least one cell; run with fewer ranks (mpirun -np) or more particles");
 }
 
+void DomainExchange::count_types(const std::uint32_t* keys, const ParticleType* type, std::size_t n) {
+  const std::size_t boundary = order_->num_keys();  // fluid counts first, then boundary counts
+  for (std::size_t i = 0; i < n; ++i)
+    if (keys[i] != kNoCell && type[i] != ParticleType::out)
+      type_counts_[keys[i] + (type[i] == ParticleType::fluid ? 0 : boundary)] += 1;
+}
+
 std::vector<double> DomainExchange::key_weights(const ParticleSet& ps, bool reduce) {
   const std::size_t keys = order_->num_keys();
+  std::vector<double> w(keys, 0.0);
   if (balance_ == BalanceBy::particles) {
-    std::vector<double> w(keys, 0.0);
     for (std::size_t i = 0; i < owned_; ++i)
       if (keys_[i] != kNoCell) w[keys_[i]] += weight(ps.type[i]);
     if (reduce) sum(w);  // exact: sums of 1 and 1/4
     return w;
   }
-  // Fluid counts in the first half, boundary counts in the second: one reduction.
-  std::vector<double> counts(2 * keys, 0.0);
-  for (std::size_t i = 0; i < owned_; ++i)
-    if (keys_[i] != kNoCell && ps.type[i] != ParticleType::out)
-      counts[keys_[i] + (ps.type[i] == ParticleType::fluid ? 0 : keys)] += 1;
-  if (reduce) sum(counts);  // exact: integer counts
-  const std::span<const double> all(counts);
-  std::vector<double> w(keys, 0.0);
-  interaction_weights(grid_, *order_, all.first(keys), all.subspan(keys), 0, static_cast<std::uint32_t>(keys), w);
+  type_counts_.assign(2 * keys, 0.0);
+  count_types(keys_.data(), ps.type.data(), owned_);
+  if (reduce) sum(type_counts_);  // exact: integer counts; both halves in one reduction
+  const std::span<const double> counts(type_counts_);
+  interaction_weights(grid_, *order_, counts.first(keys), counts.subspan(keys), 0, static_cast<std::uint32_t>(keys), w);
   return w;
 }
 
 double DomainExchange::local_work_estimate(const ParticleSet& ps) {
   const std::size_t keys = order_->num_keys();
-  fluid_count_.assign(keys, 0.0);
-  boundary_count_.assign(keys, 0.0);
-  key_work_.assign(keys, 0.0);
+  type_counts_.assign(2 * keys, 0.0);
   ghost_keys_.resize(ghosts_);
   order_->compute_keys(grid_, std::span<const double>(ps.x.data() + owned_, ghosts_),
                        std::span<const double>(ps.y.data() + owned_, ghosts_),
                        std::span<const double>(ps.z.data() + owned_, ghosts_), ps.type.data() + owned_, ghost_keys_);
-  auto add = [&](std::uint32_t key, ParticleType t) {
-    if (key == kNoCell || t == ParticleType::out) return;
-    (t == ParticleType::fluid ? fluid_count_ : boundary_count_)[key] += 1;
-  };
-  for (std::size_t i = 0; i < owned_; ++i) add(keys_[i], ps.type[i]);
-  for (std::size_t g = 0; g < ghosts_; ++g) add(ghost_keys_[g], ps.type[owned_ + g]);
+  count_types(keys_.data(), ps.type.data(), owned_);
+  count_types(ghost_keys_.data(), ps.type.data() + owned_, ghosts_);
   // The ghosts fill this rank's halo, so its own cells see every neighbour the global counts would give them.
-  interaction_weights(grid_, *order_, fluid_count_, boundary_count_, partition_.begin(rank_), partition_.end(rank_), key_work_);
-  return std::accumulate(key_work_.begin() + partition_.begin(rank_), key_work_.begin() + partition_.end(rank_), 0.0);
+  const std::uint32_t begin = partition_.begin(rank_), end = partition_.end(rank_);
+  key_work_.resize(keys);  // interaction_weights writes every key of the range
+  const std::span<const double> counts(type_counts_);
+  interaction_weights(grid_, *order_, counts.first(keys), counts.subspan(keys), begin, end, key_work_);
+  return std::accumulate(key_work_.begin() + begin, key_work_.begin() + end, 0.0);
 }
 
 void DomainExchange::repartition(const ParticleSet& ps) {

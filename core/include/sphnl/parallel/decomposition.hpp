@@ -53,8 +53,8 @@ double imbalance(std::span<const double> rank_weights);
 /// f_k and b_k the fluid and boundary particles of cell k, F_k and B_k those
 /// of its stencil (wrapped across a periodic y seam). A pair counts in both of
 /// its cells, as a pair across a rank boundary is computed on both sides.
-/// `fluid` and `boundary` hold the counts per key; out[k] outside the range is
-/// left as it is.
+/// `fluid` and `boundary` hold the counts per key; every out[k] of the range
+/// is written, the others are left as they are.
 void interaction_weights(const CellGrid& grid, const CellOrder& order, std::span<const double> fluid,
                          std::span<const double> boundary, std::uint32_t key_begin, std::uint32_t key_end,
                          std::span<double> out);

@@ -87,6 +87,8 @@ class DomainExchange final : public DistributedNeighbours {
   std::vector<double> key_weights(const ParticleSet& ps, bool reduce);
   /// This rank's interaction_weights, from its own particles and its ghosts.
   double local_work_estimate(const ParticleSet& ps);
+  /// Adds the fluid and boundary particles among n (key, type) to type_counts_.
+  void count_types(const std::uint32_t* keys, const ParticleType* type, std::size_t n);
   void repartition(const ParticleSet& ps);
   void migrate(ParticleSet& ps);
   void send_ghosts(ParticleSet& ps);
@@ -104,7 +106,8 @@ class DomainExchange final : public DistributedNeighbours {
   double threshold_;
   BalanceBy balance_;
   double work_estimate_ = 0;
-  std::vector<double> fluid_count_, boundary_count_, key_work_;  // per key (balance_by interactions)
+  // balance_by interactions: fluid then boundary particles per key, and each key's estimated work
+  std::vector<double> type_counts_, key_work_;
   std::vector<std::uint32_t> ghost_keys_;
   std::vector<int> partners_;   // Decomposition::partners of this rank, for partition_ on grid_
   bool partners_stale_ = true;  // partition_ or grid_ changed since partners_ was made
