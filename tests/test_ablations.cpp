@@ -51,6 +51,26 @@ std::vector<Ablation> ablations() {
                  c.pair_loop = PairLoopKind::direct;
                  c.threads = 2;
                }});
+  // The masked j-block loop: the same pairs, summed in another order; with
+  // every pair operation of a step (KGC's pre-pass and corrected force, the
+  // float kernel of precision=mixed) and threads.
+  for (GridderKind g : {GridderKind::B, GridderKind::D})
+    for (bool reorder : {false, true})
+      a.push_back({std::string("pair_loop=masked gridder=") + to_string(g) + " reorder=" + (reorder ? "1" : "0"),
+                   [g, reorder](RunConfig& c) {
+                     c.pair_loop = PairLoopKind::masked;
+                     c.gridder = g;
+                     c.reorder = reorder;
+                   }});
+  a.push_back({"pair_loop=masked kgc=1 threads=2", [](RunConfig& c) {
+                 c.pair_loop = PairLoopKind::masked;
+                 c.kgc = true;
+                 c.threads = 2;
+               }});
+  a.push_back({"pair_loop=masked precision=mixed", [](RunConfig& c) {
+                 c.pair_loop = PairLoopKind::masked;
+                 c.precision = Precision::mixed;
+               }});
   for (ListKind l : {ListKind::cll, ListKind::vlx}) {
     a.push_back({std::string("simd=off list=") + to_string(l), [l](RunConfig& c) {
                    c.simd = false;
@@ -118,7 +138,8 @@ TEST(Ablations, SameStateAsTheDefaultAfter100Steps) {
   std::vector<std::pair<RunConfig, State>> references;  // runs of the default path, reused
   auto reference = [&](const RunConfig& c) -> const State& {
     for (const auto& [rc, state] : references)
-      if (rc.list == c.list && rc.reorder == c.reorder && rc.threads == c.threads && rc.gridder == c.gridder)
+      if (rc.list == c.list && rc.reorder == c.reorder && rc.threads == c.threads && rc.gridder == c.gridder &&
+          rc.kgc == c.kgc && rc.precision == c.precision)
         return state;
     references.emplace_back(c, run(c));
     return references.back().second;
@@ -133,6 +154,7 @@ TEST(Ablations, SameStateAsTheDefaultAfter100Steps) {
     const State& ref = reference(reference_of(c));
     // bitwise: the same arithmetic; otherwise only the order of the sums differs
     if (a.bitwise) expect_same_bits(s, ref, a.name);
+    else if (c.precision == Precision::mixed) expect_float_roundoff_apart(s, ref, a.name);
     else expect_roundoff_apart(s, ref, a.name);
   }
 }
@@ -181,4 +203,9 @@ TEST(Ablations, BadCombinationsAreNamed) {
   c.list = ListKind::cll;
   c.skip_boundary_pairs = true;
   EXPECT_NE(message(c).find("skip_boundary_pairs = true needs pair_loop = gather"), std::string::npos) << message(c);
+  c.pair_loop = PairLoopKind::masked;
+  EXPECT_NE(message(c).find("skip_boundary_pairs = true needs pair_loop = gather"), std::string::npos) << message(c);
+  c.skip_boundary_pairs = false;
+  c.list = ListKind::vlc;
+  EXPECT_NE(message(c).find("pair_loop = masked applies to the cell-linked list"), std::string::npos) << message(c);
 }

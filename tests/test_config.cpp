@@ -71,7 +71,7 @@ TEST(Config, AblationKeysParseAndBadValuesNameTheAllowedOnes) {
   EXPECT_EQ(c.extra_loops, 3);
   EXPECT_EQ(sphnl::config_from_json(sphnl::config_to_json(c)).extra_loops, 3);
   for (const auto& [key, value, allowed] :
-       {std::tuple<std::string, json, std::string>{"pair_loop", "fast", "gather, direct"},
+       {std::tuple<std::string, json, std::string>{"pair_loop", "fast", "gather, direct, masked"},
         {"simd", true, "on, off"},
         {"simd", "avx", "on, off"},
         {"skip_boundary_pairs", "boundary", "true or false"},

@@ -225,8 +225,8 @@ TEST(Distributed, NoPairOfTwoGhostsIsEvaluated) {
     else ++ghost_ghost_truth;
   }
   ASSERT_GT(ghost_ghost_truth, 5000u);
-  enum class Pass { cll_gather, cll_direct, verlet };
-  for (const Pass pass : {Pass::cll_gather, Pass::cll_direct, Pass::verlet})
+  enum class Pass { cll_gather, cll_direct, cll_masked, verlet };
+  for (const Pass pass : {Pass::cll_gather, Pass::cll_direct, Pass::cll_masked, Pass::verlet})
     for (const bool reorder : {false, true}) {
       SCOPED_TRACE("pass " + std::to_string(static_cast<int>(pass)) + ", reorder " + std::to_string(reorder));
       ParticleSet ps = base;
@@ -250,7 +250,9 @@ TEST(Distributed, NoPairOfTwoGhostsIsEvaluated) {
       } else {
         CellLinkedList cll;
         PairLoopOptions options;
-        options.loop = pass == Pass::cll_gather ? PairLoopKind::gather : PairLoopKind::direct;
+        options.loop = pass == Pass::cll_gather   ? PairLoopKind::gather
+                       : pass == Pass::cll_direct ? PairLoopKind::direct
+                                                  : PairLoopKind::masked;
         cll.for_each_pair(pg, ps, ops, support2, options);
       }
       const PairSet found = recorded_ids(ps, recorded);

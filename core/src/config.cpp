@@ -16,7 +16,7 @@ constexpr std::array kGridderNames{"A", "B", "C", "D"};
 constexpr std::array kOrderNames{"sort_x", "sort_xy", "sort_xyz", "hilbert"};
 constexpr std::array kListNames{"cll", "vlc", "vlx"};
 constexpr std::array kLatticeNames{"bcc", "cubic"};
-constexpr std::array kPairLoopNames{"gather", "direct"};
+constexpr std::array kPairLoopNames{"gather", "direct", "masked"};
 constexpr std::array kSlidingNames{"occupied", "shift_all"};
 constexpr std::array kInitialOrderNames{"generated", "shuffled"};
 constexpr std::array kOnOffNames{"on", "off"};

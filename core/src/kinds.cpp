@@ -17,7 +17,7 @@ const char* to_string(ListKind l) {
 }
 
 const char* to_string(PairLoopKind p) {
-  constexpr const char* names[] = {"gather", "direct"};
+  constexpr const char* names[] = {"gather", "direct", "masked"};
   return names[static_cast<int>(p)];
 }
 const char* to_string(SlidingVariant v) {

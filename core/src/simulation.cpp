@@ -65,6 +65,12 @@ void Simulation::init(Communicator* comm) {
   if (config_.pair_loop == PairLoopKind::direct && config_.list != ListKind::cll)
     throw ConfigError("pair_loop = direct applies to the cell-linked list (list = cll); a Verlet list's loop "
                       "already reads the particles in place and its build uses the gather sweep; use pair_loop = gather");
+  if (config_.pair_loop == PairLoopKind::masked && config_.list != ListKind::cll)
+    throw ConfigError("pair_loop = masked applies to the cell-linked list (list = cll); a Verlet list's loop "
+                      "reads stored pairs, not consecutive cell entries; use pair_loop = gather");
+  if (config_.pair_loop == PairLoopKind::masked && config_.skip_boundary_pairs)
+    throw ConfigError("skip_boundary_pairs = true needs pair_loop = gather (it picks the fluid entries of the "
+                      "gathered cells); use one of the two");
   if (config_.pair_loop == PairLoopKind::direct && config_.skip_boundary_pairs)
     throw ConfigError("skip_boundary_pairs = true needs pair_loop = gather (it picks the fluid entries of the "
                       "gathered cells); use one of the two");
@@ -173,6 +179,7 @@ void Simulation::compute_forces_with(std::vector<ForcePlain>& force_ops, std::ve
   max_mu_ = mu;
   stats_.candidates += counts.candidates;
   stats_.interactions += counts.interactions;
+  stats_.idle_lanes += counts.idle_lanes;
   // extra_loops (README.md, "Ablations"): more passes over the same pairs
   // doing real work whose result is kept but not applied, after the main loop
   // so that L_a of KGC is already in use and the physics is unchanged.

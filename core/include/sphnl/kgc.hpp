@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "sphnl/neighbours/pair_filter.hpp"
 #include "sphnl/neighbours/pair_operation.hpp"
 #include "sphnl/particle_view.hpp"
 #include "sphnl/particles.hpp"
@@ -25,25 +26,61 @@ struct KgcMatrixPass {
 
   void interact(const ParticleView& v, std::uint32_t i, const std::uint32_t* __restrict js, int n) {
     const CubicSpline k = phys->kernel;  // a local copy: the stores below cannot alias it
-    const double inv_h = k.inv_h;
-    const double xa = v.x[i], ya = v.y[i], za = v.z[i];
-    const double va = v.mass[i] / v.rho[i];
+    const Home a(v, i);
     double mxx = 0, mxy = 0, mxz = 0, myy = 0, myz = 0, mzz = 0;
 #pragma omp simd reduction(+ : mxx, mxy, mxz, myy, myz, mzz) if(simd : Simd)
     for (int p = 0; p < n; ++p) {
-      const std::uint32_t j = js[p];
-      const double dx = xa - v.x[j], dy = ya - v.y[j], dz = za - v.z[j];
-      const double r = std::sqrt(dx * dx + dy * dy + dz * dz);
-      const double f = k.dwdr_of_q(r * inv_h) / r;  // F = (dW/dr)/r
-      const double vb = v.mass[j] / v.rho[j];
-      const double sa = -vb * f, sb = -va * f;  // coefficients of r_ab (x) r_ab
-      const double xx = dx * dx, xy = dx * dy, xz = dx * dz, yy = dy * dy, yz = dy * dz, zz = dz * dz;
-      mxx += sa * xx; mxy += sa * xy; mxz += sa * xz; myy += sa * yy; myz += sa * yz; mzz += sa * zz;
-      v.m_kgc[0][j] += sb * xx; v.m_kgc[1][j] += sb * xy; v.m_kgc[2][j] += sb * xz;
-      v.m_kgc[3][j] += sb * yy; v.m_kgc[4][j] += sb * yz; v.m_kgc[5][j] += sb * zz;
+      const Terms t = pair(k, a, v, js[p], true);
+      mxx += t.m[0]; mxy += t.m[1]; mxz += t.m[2]; myy += t.m[3]; myz += t.m[4]; mzz += t.m[5];
     }
-    v.m_kgc[0][i] += mxx; v.m_kgc[1][i] += mxy; v.m_kgc[2][i] += mxz;
-    v.m_kgc[3][i] += myy; v.m_kgc[4][i] += myz; v.m_kgc[5][i] += mzz;
+    const double sums[6] = {mxx, mxy, mxz, myy, myz, mzz};
+    for (int c = 0; c < 6; ++c) v.m_kgc[c][i] += sums[c];
+  }
+
+  /// `pair_loop=masked`: as ForceOp::interact_blocks.
+  void interact_blocks(const ParticleView& v, std::uint32_t i, const std::uint32_t* __restrict first,
+                       const std::uint8_t* __restrict lanes, int blocks) {
+    const CubicSpline k = phys->kernel;
+    const Home a(v, i);
+    double acc[6][kPairBlock] = {};
+    for (int b = 0; b < blocks; ++b) {
+      const std::uint32_t j0 = first[b];
+      const unsigned bits = lanes[b];
+#pragma omp simd if(simd : Simd)
+      for (int p = 0; p < kPairBlock; ++p) {
+        const Terms t = pair(k, a, v, j0 + static_cast<std::uint32_t>(p), ((bits >> p) & 1u) != 0);
+        for (int c = 0; c < 6; ++c) acc[c][p] += t.m[c];
+      }
+    }
+    for (int c = 0; c < 6; ++c) {
+      double sum = 0;
+      for (int p = 0; p < kPairBlock; ++p) sum += acc[c][p];
+      v.m_kgc[c][i] += sum;
+    }
+  }
+
+ private:
+  struct Home {
+    double x, y, z, volume;
+    Home(const ParticleView& v, std::uint32_t i) : x(v.x[i]), y(v.y[i]), z(v.z[i]), volume(v.mass[i] / v.rho[i]) {}
+  };
+  struct Terms {
+    double m[6];  // particle i's terms of M_a: xx, xy, xz, yy, yz, zz
+  };
+
+  /// The one pair of the pre-pass, applied to j in place and returned for i;
+  /// `live` false gives exact zeros (a lane of a block that is not a pair).
+  [[gnu::always_inline]] static inline Terms pair(const CubicSpline& k, const Home& a, const ParticleView& v,
+                                                  std::uint32_t j, bool live) {
+    const double dx = a.x - v.x[j], dy = a.y - v.y[j], dz = a.z - v.z[j];
+    const double r = std::sqrt(live ? dx * dx + dy * dy + dz * dz : 1.0);
+    const double f = live ? k.dwdr_of_q(r * k.inv_h) / r : 0.0;  // F = (dW/dr)/r
+    const double vb = live ? v.mass[j] / v.rho[j] : 0.0;  // a slot past the buffer's end may hold rho = 0
+    const double sa = -vb * f, sb = -a.volume * f;  // coefficients of r_ab (x) r_ab
+    const double xx = dx * dx, xy = dx * dy, xz = dx * dz, yy = dy * dy, yz = dy * dz, zz = dz * dz;
+    v.m_kgc[0][j] += sb * xx; v.m_kgc[1][j] += sb * xy; v.m_kgc[2][j] += sb * xz;
+    v.m_kgc[3][j] += sb * yy; v.m_kgc[4][j] += sb * yz; v.m_kgc[5][j] += sb * zz;
+    return Terms{{sa * xx, sa * xy, sa * xz, sa * yy, sa * yz, sa * zz}};
   }
 };
 

@@ -16,8 +16,9 @@ enum class ListKind : std::uint8_t { cll, vlc, vlx };                           
 /// How the cell-linked list reads a home cell and its 13 forward cells:
 /// `gather` copies them into a contiguous CellBuffer first; `direct` reads the
 /// particle arrays in place through the gridder's own structure, as the
-/// paper's code did.
-enum class PairLoopKind : std::uint8_t { gather, direct };
+/// paper's code did; `masked` reads the gathered copies in blocks of 8
+/// consecutive entries with a lane mask (no compaction, no gather).
+enum class PairLoopKind : std::uint8_t { gather, direct, masked };
 /// Gridder A (§2.3, sliding dynamic vector): after an insertion, `occupied`
 /// re-adjusts CellsBegin only up to the last cell holding a particle so far
 /// (an insertion in cell order appends at O(1)); `shift_all` re-adjusts it for

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <type_traits>
 
+#include "sphnl/neighbours/pair_filter.hpp"
 #include "sphnl/neighbours/pair_operation.hpp"
 #include "sphnl/particle_view.hpp"
 #include "sphnl/physics.hpp"
@@ -41,73 +42,158 @@ struct ForceOp {
   /// Particle i interacts with js[0..n) (all distinct, all with r < 2h).
   template <class T>
   void interact(const BasicParticleView<T>& v, std::uint32_t i, const std::uint32_t* __restrict js, int n) {
-    using R = Real;
-    using Sum = T;  // the view's own type: double sums for double views, float partial sums for the buffer's copy
-    const CubicSpline k = phys->kernel;  // a local copy: the stores below cannot alias it
-    const R h = static_cast<R>(k.h), inv_h = static_cast<R>(k.inv_h);
-    const R inv_w_dp = static_cast<R>(k.inv_w_dp), eta2 = static_cast<R>(phys->eta2);
-    const R alpha = static_cast<R>(phys->alpha), eps = static_cast<R>(phys->xsph_epsilon);
-    const T xa = v.x[i], ya = v.y[i], za = v.z[i];
-    const T vxa = v.vx[i], vya = v.vy[i], vza = v.vz[i];
-    const R rhoa = static_cast<R>(v.rho[i]), ma = static_cast<R>(v.mass[i]);
-    const R pra = static_cast<R>(v.p_over_rho2[i]), ra = static_cast<R>(v.tensile_r[i]);
-    const R ca = static_cast<R>(v.sound_speed[i]), fluid_a = static_cast<R>(v.is_fluid[i]);
-    R la[6] = {1, 0, 0, 1, 0, 1};
-    if constexpr (Kgc)
-      for (int c = 0; c < 6; ++c) la[c] = static_cast<R>(v.kgc[c][i]);
-
-    Sum axa = 0, aya = 0, aza = 0, drhoa = 0, uxa = 0, uya = 0, uza = 0;
-    R mu_max = static_cast<R>(max_mu);
+    const Constants c(*phys);
+    const Home<T> a(v, i);
+    Sum<T> axa = 0, aya = 0, aza = 0, drhoa = 0, uxa = 0, uya = 0, uza = 0;
+    Real mu_max = static_cast<Real>(max_mu);
 #pragma omp simd reduction(+ : axa, aya, aza, drhoa, uxa, uya, uza) reduction(max : mu_max) if(simd : Simd)
     for (int p = 0; p < n; ++p) {
-      const std::uint32_t j = js[p];
-      const R dx = static_cast<R>(xa - v.x[j]), dy = static_cast<R>(ya - v.y[j]), dz = static_cast<R>(za - v.z[j]);
-      const R r2 = dx * dx + dy * dy + dz * dz;
-      const R r = std::sqrt(r2), inv_r = R(1) / r;
-      const R q = r * inv_h;
-      // Kernel (eq. 1) and F = (dW/dr)/r; both branches computed, then selected.
-      const R w = k.w_of_q(q);
-      const R f = k.dwdr_of_q(q) * inv_r;
-      // Tensile correction (Monaghan 2000): (R_a + R_b) (W/W(dp))^4, plain W.
-      const R fw = w * inv_w_dp, fw2 = fw * fw;
-      const R dvx = static_cast<R>(vxa - v.vx[j]), dvy = static_cast<R>(vya - v.vy[j]),
-              dvz = static_cast<R>(vza - v.vz[j]);
-      const R vdotr = dvx * dx + dvy * dy + dvz * dz;
-      const R mu = h * vdotr / (r2 + eta2);
-      const R rho_bar = R(0.5) * (rhoa + static_cast<R>(v.rho[j]));
-      const R inv_rho_bar = R(1) / rho_bar;
-      // Artificial viscosity (eq. 3), beta = 0: only approaching pairs.
-      const R pi_ab = vdotr < R(0) ? -alpha * R(0.5) * (ca + static_cast<R>(v.sound_speed[j])) * mu * inv_rho_bar : R(0);
-      const R pterm = pra + static_cast<R>(v.p_over_rho2[j]) + (ra + static_cast<R>(v.tensile_r[j])) * fw2 * fw2 + pi_ab;
-      mu_max = std::max(mu_max, std::fabs(mu));
-
-      const R gx = f * dx, gy = f * dy, gz = f * dz;  // grad_a W_ab = -grad_b W_ba
-      R gax = gx, gay = gy, gaz = gz, gbx = gx, gby = gy, gbz = gz;
-      if constexpr (Kgc) {  // L_a grad_a W_ab for a, -(L_b grad_b W_ba) for b
-        gax = la[0] * gx + la[1] * gy + la[2] * gz;
-        gay = la[1] * gx + la[3] * gy + la[4] * gz;
-        gaz = la[2] * gx + la[4] * gy + la[5] * gz;
-        const R lb0 = static_cast<R>(v.kgc[0][j]), lb1 = static_cast<R>(v.kgc[1][j]), lb2 = static_cast<R>(v.kgc[2][j]);
-        const R lb3 = static_cast<R>(v.kgc[3][j]), lb4 = static_cast<R>(v.kgc[4][j]), lb5 = static_cast<R>(v.kgc[5][j]);
-        gbx = lb0 * gx + lb1 * gy + lb2 * gz;
-        gby = lb1 * gx + lb3 * gy + lb4 * gz;
-        gbz = lb2 * gx + lb4 * gy + lb5 * gz;
-      }
-      const R mb = static_cast<R>(v.mass[j]);
-      // Momentum (eq. 2): a_a -= m_b T grad_a W_ab,  a_b -= m_a T grad_b W_ba.
-      const R tb = mb * pterm, ta = ma * pterm;
-      axa -= tb * gax; aya -= tb * gay; aza -= tb * gaz;
-      v.ax[j] += ta * gbx; v.ay[j] += ta * gby; v.az[j] += ta * gbz;
-      // Continuity (eq. 4): v_ba . grad_b W_ba = v_ab . (-grad_b W_ba).
-      drhoa += mb * (dvx * gax + dvy * gay + dvz * gaz);
-      v.drho[j] += ma * (dvx * gbx + dvy * gby + dvz * gbz);
-      // XSPH (eq. 6) between fluid particles only: walls must not drag the
-      // positions of the fluid (as in SPHysics and DualSPHysics).
-      const R xs = eps * w * inv_rho_bar * fluid_a * static_cast<R>(v.is_fluid[j]);
-      const R xb = mb * xs, xa_ = ma * xs;
-      uxa -= xb * dvx; uya -= xb * dvy; uza -= xb * dvz;
-      v.ux[j] += xa_ * dvx; v.uy[j] += xa_ * dvy; v.uz[j] += xa_ * dvz;
+      const Terms t = pair(c, a, v, js[p], true);
+      axa -= t.ax; aya -= t.ay; aza -= t.az; drhoa += t.drho;
+      uxa -= t.ux; uya -= t.uy; uza -= t.uz;
+      mu_max = std::max(mu_max, std::fabs(t.mu));
     }
+    finish(v, i, axa, aya, aza, drhoa, uxa, uya, uza, mu_max);
+  }
+
+  /// `pair_loop=masked`: particle i against whole blocks of kPairBlock
+  /// consecutive entries, block b starting at first[b], its lane k a pair
+  /// when bit k of lanes[b] is set (filter_blocks). Every lane is evaluated
+  /// with plain vector loads and stores, no gather or scatter; the lanes
+  /// that are not pairs contribute exact zeros. Entries up to first[b] + 7
+  /// must be readable and finite (the gather buffer's slack).
+  template <class T>
+  void interact_blocks(const BasicParticleView<T>& v, std::uint32_t i, const std::uint32_t* __restrict first,
+                       const std::uint8_t* __restrict lanes, int blocks) {
+    const Constants c(*phys);
+    const Home<T> a(v, i);
+    // Per-lane partial sums across the blocks: one horizontal sum per
+    // particle i, not one per block.
+    Sum<T> acc[7][kPairBlock] = {};
+    Real mu_lane[kPairBlock] = {};
+    // kPairBlock hidden from the optimiser: with a known trip count of 8 GCC
+    // unrolls the lane loop into scalar code before the vectoriser sees it.
+    int width = kPairBlock;
+    asm("" : "+r"(width));
+    for (int b = 0; b < blocks; ++b) {
+      const std::uint32_t j0 = first[b];
+      const unsigned bits = lanes[b];
+#pragma omp simd if(simd : Simd)
+      for (int p = 0; p < width; ++p) {
+        const Terms t = pair(c, a, v, j0 + static_cast<std::uint32_t>(p), ((bits >> p) & 1u) != 0);
+        acc[0][p] -= t.ax; acc[1][p] -= t.ay; acc[2][p] -= t.az; acc[3][p] += t.drho;
+        acc[4][p] -= t.ux; acc[5][p] -= t.uy; acc[6][p] -= t.uz;
+        mu_lane[p] = std::max(mu_lane[p], std::fabs(t.mu));
+      }
+    }
+    Sum<T> total[7] = {};
+    Real mu_max = static_cast<Real>(max_mu);
+    for (int p = 0; p < kPairBlock; ++p) {
+      for (int q = 0; q < 7; ++q) total[q] += acc[q][p];
+      mu_max = std::max(mu_max, mu_lane[p]);
+    }
+    finish(v, i, total[0], total[1], total[2], total[3], total[4], total[5], total[6], mu_max);
+  }
+
+ private:
+  using R = Real;
+  // The view's own type: double sums for double views, float partial sums for
+  // the buffer's float copy.
+  template <class T>
+  using Sum = T;
+
+  /// The constants of the pair, in the pair's arithmetic.
+  struct Constants {
+    CubicSpline k;  // a local copy: the stores of the loop cannot alias it
+    R h, inv_h, inv_w_dp, eta2, alpha, eps;
+    explicit Constants(const PhysicsParams& ph)
+        : k(ph.kernel), h(static_cast<R>(k.h)), inv_h(static_cast<R>(k.inv_h)), inv_w_dp(static_cast<R>(k.inv_w_dp)),
+          eta2(static_cast<R>(ph.eta2)), alpha(static_cast<R>(ph.alpha)), eps(static_cast<R>(ph.xsph_epsilon)) {}
+  };
+
+  /// What the loop over i's partners reads of particle i.
+  template <class T>
+  struct Home {
+    T x, y, z, vx, vy, vz;
+    R rho, m, pr, tr, c, fluid;
+    R l[6] = {1, 0, 0, 1, 0, 1};
+    Home(const BasicParticleView<T>& v, std::uint32_t i)
+        : x(v.x[i]), y(v.y[i]), z(v.z[i]), vx(v.vx[i]), vy(v.vy[i]), vz(v.vz[i]), rho(static_cast<R>(v.rho[i])),
+          m(static_cast<R>(v.mass[i])), pr(static_cast<R>(v.p_over_rho2[i])), tr(static_cast<R>(v.tensile_r[i])),
+          c(static_cast<R>(v.sound_speed[i])), fluid(static_cast<R>(v.is_fluid[i])) {
+      if constexpr (Kgc)
+        for (int k = 0; k < 6; ++k) l[k] = static_cast<R>(v.kgc[k][i]);
+    }
+  };
+
+  /// Particle i's terms of one pair, to be subtracted (ax..az, ux..uz) or
+  /// added (drho) to its sums; mu for the time step.
+  struct Terms {
+    R ax, ay, az, drho, ux, uy, uz, mu;
+  };
+
+  /// The one pair: (i, j) with r < 2h, applied to j in place and returned for
+  /// i. With `live` false (a lane of a block that is not a pair) every term is
+  /// an exact zero; r^2 is replaced first so nothing divides by zero.
+  template <class T>
+  [[gnu::always_inline]] static inline Terms pair(const Constants& c, const Home<T>& a, const BasicParticleView<T>& v,
+                                                  std::uint32_t j, bool live) {
+    const R dx = static_cast<R>(a.x - v.x[j]), dy = static_cast<R>(a.y - v.y[j]), dz = static_cast<R>(a.z - v.z[j]);
+    const R r2_pair = dx * dx + dy * dy + dz * dz;
+    const R r2 = live ? r2_pair : R(1);
+    const R r = std::sqrt(r2), inv_r = R(1) / r;
+    const R q = r * c.inv_h;
+    // Kernel (eq. 1) and F = (dW/dr)/r; both branches computed, then selected.
+    const R w = live ? c.k.w_of_q(q) : R(0);
+    const R f = live ? c.k.dwdr_of_q(q) * inv_r : R(0);
+    // Tensile correction (Monaghan 2000): (R_a + R_b) (W/W(dp))^4, plain W.
+    const R fw = w * c.inv_w_dp, fw2 = fw * fw;
+    const R dvx = static_cast<R>(a.vx - v.vx[j]), dvy = static_cast<R>(a.vy - v.vy[j]),
+            dvz = static_cast<R>(a.vz - v.vz[j]);
+    const R vdotr = dvx * dx + dvy * dy + dvz * dz;
+    const R mu = live ? c.h * vdotr / (r2 + c.eta2) : R(0);
+    const R rho_bar = R(0.5) * (a.rho + static_cast<R>(v.rho[j]));
+    const R inv_rho_bar = R(1) / rho_bar;
+    // Artificial viscosity (eq. 3), beta = 0: only approaching pairs.
+    const R pi_ab =
+        vdotr < R(0) ? -c.alpha * R(0.5) * (a.c + static_cast<R>(v.sound_speed[j])) * mu * inv_rho_bar : R(0);
+    const R pterm = a.pr + static_cast<R>(v.p_over_rho2[j]) + (a.tr + static_cast<R>(v.tensile_r[j])) * fw2 * fw2 + pi_ab;
+
+    const R gx = f * dx, gy = f * dy, gz = f * dz;  // grad_a W_ab = -grad_b W_ba
+    R gax = gx, gay = gy, gaz = gz, gbx = gx, gby = gy, gbz = gz;
+    if constexpr (Kgc) {  // L_a grad_a W_ab for a, -(L_b grad_b W_ba) for b
+      const R* la = a.l;
+      gax = la[0] * gx + la[1] * gy + la[2] * gz;
+      gay = la[1] * gx + la[3] * gy + la[4] * gz;
+      gaz = la[2] * gx + la[4] * gy + la[5] * gz;
+      const R lb0 = static_cast<R>(v.kgc[0][j]), lb1 = static_cast<R>(v.kgc[1][j]), lb2 = static_cast<R>(v.kgc[2][j]);
+      const R lb3 = static_cast<R>(v.kgc[3][j]), lb4 = static_cast<R>(v.kgc[4][j]), lb5 = static_cast<R>(v.kgc[5][j]);
+      gbx = lb0 * gx + lb1 * gy + lb2 * gz;
+      gby = lb1 * gx + lb3 * gy + lb4 * gz;
+      gbz = lb2 * gx + lb4 * gy + lb5 * gz;
+    }
+    const R mb = static_cast<R>(v.mass[j]);
+    // Momentum (eq. 2): a_a -= m_b T grad_a W_ab,  a_b -= m_a T grad_b W_ba.
+    const R tb = mb * pterm, ta = a.m * pterm;
+    Terms t;
+    t.ax = tb * gax; t.ay = tb * gay; t.az = tb * gaz;
+    v.ax[j] += ta * gbx; v.ay[j] += ta * gby; v.az[j] += ta * gbz;
+    // Continuity (eq. 4): v_ba . grad_b W_ba = v_ab . (-grad_b W_ba).
+    t.drho = mb * (dvx * gax + dvy * gay + dvz * gaz);
+    v.drho[j] += a.m * (dvx * gbx + dvy * gby + dvz * gbz);
+    // XSPH (eq. 6) between fluid particles only: walls must not drag the
+    // positions of the fluid (as in SPHysics and DualSPHysics).
+    const R xs = c.eps * w * inv_rho_bar * a.fluid * static_cast<R>(v.is_fluid[j]);
+    const R xb = mb * xs, xa_ = a.m * xs;
+    t.ux = xb * dvx; t.uy = xb * dvy; t.uz = xb * dvz;
+    v.ux[j] += xa_ * dvx; v.uy[j] += xa_ * dvy; v.uz[j] += xa_ * dvz;
+    t.mu = mu;
+    return t;
+  }
+
+  template <class T>
+  void finish(const BasicParticleView<T>& v, std::uint32_t i, Sum<T> axa, Sum<T> aya, Sum<T> aza, Sum<T> drhoa,
+              Sum<T> uxa, Sum<T> uya, Sum<T> uza, R mu_max) {
     v.ax[i] += axa; v.ay[i] += aya; v.az[i] += aza; v.drho[i] += drhoa;
     v.ux[i] += uxa; v.uy[i] += uya; v.uz[i] += uza;
     max_mu = mu_max;

@@ -48,7 +48,7 @@ std::size_t CellSweep::bytes() const {
   // The thread split (thread_begin_, weight_) exists once, whatever the thread count.
   std::size_t b = thread_begin_.capacity() * sizeof(std::uint32_t) + weight_.capacity() * sizeof(double) + phases_.bytes();
   for (const auto& s : scratch_)
-    b += s.buffer.bytes() + (s.cell_index.capacity() + s.survivors.capacity() + s.fluid_slots.capacity()) * sizeof(std::uint32_t) +
+    b += s.buffer.bytes() + (s.cell_index.capacity() + s.survivors.capacity() + s.fluid_slots.capacity() + s.block_pairs.capacity()) * sizeof(std::uint32_t) + s.lanes.capacity() +
          s.private_acc.bytes();
   return b;
 }

@@ -5,6 +5,11 @@
 // How the cells are read is an ablation (README.md, "Ablations"), decided
 // once per pass: gathered into a CellBuffer (default) or read in place through
 // the gridder (`pair_loop=direct`); the filter and the kernel are the same.
+// `pair_loop=masked` reads the gathered cells too, but hands the kernel
+// blocks of consecutive entries with a lane mask instead of a compacted list
+// of survivors: more lanes evaluated, none gathered or scattered.
+#include <algorithm>
+#include <bit>
 #include <vector>
 
 #include "sphnl/neighbours/cell_sweep.hpp"
@@ -29,6 +34,11 @@ class CellLinkedList {
         throw std::logic_error("skip_boundary_pairs needs the gather loop (pair_loop=gather)");
       if (options.simd) direct<true>(pg, ps, ops, support2, options.updates);
       else direct<false>(pg, ps, ops, support2, options.updates);
+    } else if (options.loop == PairLoopKind::masked) {
+      if (options.skip_boundary_pairs)
+        throw std::logic_error("skip_boundary_pairs needs the gather loop (pair_loop=gather)");
+      if (options.simd) masked<true>(pg, ps, ops, support2, options.updates);
+      else masked<false>(pg, ps, ops, support2, options.updates);
     } else if (options.skip_boundary_pairs) {
       if (options.simd) gathered<true, true>(pg, ps, ops, support2, options.updates);
       else gathered<false, true>(pg, ps, ops, support2, options.updates);
@@ -63,6 +73,51 @@ class CellLinkedList {
                  }
                },
                updates, pg.ghost_begin());
+  }
+
+  /// `pair_loop=masked`: the pairs of the gathered home cell as j-blocks
+  /// (filter_blocks); candidates counted as the gather loop counts them.
+  template <bool Simd, PairOperation Op>
+  void masked(const ParticleGrid& pg, ParticleSet& ps, std::vector<Op>& ops, double support2, ThreadUpdates updates) {
+    sweep_.run(pg.grid(), pg.order(), pg.gridder(), ps, Op::kFields, static_cast<int>(ops.size()),
+               [&](int t, CellSweep::Scratch& s, std::uint32_t n_home) {
+                 const ParticleView v = s.buffer.view();
+                 const std::uint32_t total = s.buffer.size();
+                 std::uint32_t* first = s.survivors.data();
+                 std::uint8_t* lanes = s.block_lanes(total);
+                 PairCounts& c = counts_[t];
+                 const ParticleViewF vf = s.buffer.float_view();
+                 for (std::uint32_t i = 0; i < n_home; ++i) {
+                   const std::uint32_t j0 = std::max(i + 1, s.first_partner);
+                   if (j0 >= total) continue;
+                   c.candidates += total - j0;
+                   const int blocks = filter_blocks<Simd>(v, i, j0, total, support2, first, lanes);
+                   std::uint64_t pairs = 0;
+                   for (int b = 0; b < blocks; ++b) pairs += static_cast<unsigned>(std::popcount(unsigned{lanes[b]}));
+                   c.interactions += pairs;
+                   c.idle_lanes += static_cast<std::uint64_t>(blocks) * kPairBlock - pairs;
+                   if constexpr ((Op::kFields & fields::float_copy) != 0) run_blocks(ops[t], vf, i, first, lanes, blocks, s);
+                   else run_blocks(ops[t], v, i, first, lanes, blocks, s);
+                 }
+               },
+               updates, pg.ghost_begin());
+  }
+
+  /// An operation without interact_blocks gets the blocks' pairs as a list
+  /// (in the same order), written after the blocks in the survivors' room.
+  template <PairOperation Op, class View>
+  static void run_blocks(Op& op, const View& v, std::uint32_t i, const std::uint32_t* first, const std::uint8_t* lanes,
+                         int blocks, CellSweep::Scratch& s) {
+    if constexpr (BlockPairOperation<Op, View>) {
+      op.interact_blocks(v, i, first, lanes, blocks);
+    } else {
+      std::vector<std::uint32_t>& list = s.block_pairs;
+      list.clear();
+      for (int b = 0; b < blocks; ++b)
+        for (int k = 0; k < kPairBlock; ++k)
+          if ((lanes[b] >> k) & 1u) list.push_back(first[b] + static_cast<std::uint32_t>(k));
+      op.interact(v, i, list.data(), static_cast<int>(list.size()));
+    }
   }
 
   /// Candidates of one cell read in place: a contiguous index range (B and A

@@ -48,6 +48,13 @@ class CellSweep {
     std::vector<std::uint32_t> cell_index;
     std::vector<std::uint32_t> survivors;
     std::vector<std::uint32_t> fluid_slots;  // skip_boundary_pairs: fluid entries of the buffer
+    std::vector<std::uint8_t> lanes;         // pair_loop=masked: lane masks of the j-blocks
+    std::vector<std::uint32_t> block_pairs;  // pair_loop=masked: pairs of the blocks, for list-only operations
+    /// Room for the lane masks of one home particle's blocks among `total` entries.
+    std::uint8_t* block_lanes(std::uint32_t total) {
+      if (lanes.size() < total / kPairBlock + 2) lanes.resize(total / kPairBlock + 2);
+      return lanes.data();
+    }
     ThreadAccumulators private_acc;  // threads > 0
     ParticleView target;
     /// First buffer entry a home particle is paired with beyond its own

@@ -11,6 +11,7 @@ struct NeighbourStats {
   std::uint64_t builds = 0;          // grid/list builds (CLL: one per step)
   std::uint64_t candidates = 0;      // candidate pairs tested in the main loop
   std::uint64_t interactions = 0;    // pairs evaluated in the main loop
+  std::uint64_t idle_lanes = 0;      // pair_loop=masked: kernel lanes evaluated that were not pairs
   std::uint64_t max_steps_per_list = 0;
   // Verlet lists (paper §2.5); all zero for the cell-linked list
   std::uint64_t list_steps = 0;         // steps that used a list (sum of list lifetimes)

@@ -164,6 +164,57 @@ inline int filter_range(const ParticleView& v, std::uint32_t i, std::uint32_t j0
   return n;
 }
 
+/// The lanes of j-blocks: `pair_loop=masked` hands the pair kernel whole
+/// blocks of kPairBlock consecutive candidates with a lane mask instead of a
+/// compacted list (PairBlocks).
+inline constexpr int kPairBlock = 8;
+
+/// Candidates j0..j1-1 (contiguous) of particle i, tested as filter_range does
+/// (the same pairs survive), in blocks of kPairBlock from j0: writes the
+/// first index and the lane mask (bit k: j + k survives) of every block with a
+/// survivor, and returns how many blocks it wrote. The last block may reach
+/// past j1; its lanes there are clear (the buffer has kFilterSlack entries
+/// of room, so a kernel may read them).
+template <bool Simd = true>
+inline int filter_blocks(const ParticleView& v, std::uint32_t i, std::uint32_t j0, std::uint32_t j1, double support2,
+                         std::uint32_t* __restrict block_first, std::uint8_t* __restrict block_lanes,
+                         double min_r2 = CubicSpline::kMinR2) {
+  const double xi = v.x[i], yi = v.y[i], zi = v.z[i], fi = v.is_fluid[i];
+  int n = 0;
+  std::uint32_t j = j0;
+#if defined(SPHNL_FILTER_AVX512)
+  if constexpr (Simd) {
+    const __m512d vx = simd::splat(xi), vy = simd::splat(yi), vz = simd::splat(zi);
+    const __m512d vs = simd::splat(support2), vmin = simd::splat(min_r2), vf = simd::splat(fi), zero = simd::splat(0.0);
+    for (; j < j1; j += 8) {  // masked loads cover the tail
+      const std::uint32_t left = j1 - j;
+      const __mmask8 lanes = left >= 8 ? static_cast<__mmask8>(0xFF) : static_cast<__mmask8>((1u << left) - 1u);
+      const __m512d r2 = simd::distance2(vx, vy, vz, _mm512_maskz_loadu_pd(lanes, v.x + j),
+                                         _mm512_maskz_loadu_pd(lanes, v.y + j), _mm512_maskz_loadu_pd(lanes, v.z + j));
+      const __m512d fluid = _mm512_add_pd(vf, _mm512_maskz_loadu_pd(lanes, v.is_fluid + j));
+      const __mmask8 keep = _mm512_mask_cmp_pd_mask(lanes, r2, vs, _CMP_LT_OQ) &
+                            _mm512_cmp_pd_mask(r2, vmin, _CMP_GT_OQ) & _mm512_cmp_pd_mask(fluid, zero, _CMP_GT_OQ);
+      block_first[n] = j;
+      block_lanes[n] = static_cast<std::uint8_t>(keep);
+      n += keep != 0;
+    }
+    return n;
+  }
+#endif
+  for (; j < j1; j += kPairBlock) {
+    unsigned keep = 0;
+    const std::uint32_t end = j1 - j < static_cast<std::uint32_t>(kPairBlock) ? j1 : j + kPairBlock;
+    for (std::uint32_t k = j; k < end; ++k) {
+      const double r2 = distance2(xi - v.x[k], yi - v.y[k], zi - v.z[k]);
+      keep |= static_cast<unsigned>((r2 < support2) & (r2 > min_r2) & (fi + v.is_fluid[k] > 0.0)) << (k - j);
+    }
+    block_first[n] = j;
+    block_lanes[n] = static_cast<std::uint8_t>(keep);
+    n += keep != 0;
+  }
+  return n;
+}
+
 /// Candidates given as a list (Verlet lists, `pair_loop=direct`); writes the
 /// survivors to `out`. A Verlet list holds no boundary-boundary pair, so by
 /// default only the distance is tested; `DropBoundaryPairs` also drops them,

@@ -9,6 +9,10 @@
 //             particle i with js[0..n), all distinct, every pair with
 //             1e-18 < r^2 < (2h)^2 and not boundary-boundary; each unordered
 //             pair is handed over once, so the operation applies it to both.
+//   interact_blocks(view, i, first, lanes, blocks)    (optional)
+//             the same pairs as blocks of kPairBlock consecutive entries with
+//             a lane mask (pair_loop=masked, filter_blocks); an operation
+//             without it is handed the blocks' pairs as a list.
 #include <concepts>
 #include <cstdint>
 
@@ -20,6 +24,12 @@ template <class Op>
 concept PairOperation = requires(Op& op, const ParticleView& v, std::uint32_t i, const std::uint32_t* js, int n) {
   { Op::kFields } -> std::convertible_to<unsigned>;
   op.interact(v, i, js, n);
+};
+
+template <class Op, class View>
+concept BlockPairOperation = requires(Op& op, const View& v, std::uint32_t i, const std::uint32_t* first,
+                                      const std::uint8_t* lanes, int blocks) {
+  op.interact_blocks(v, i, first, lanes, blocks);
 };
 
 }  // namespace sphnl
