@@ -532,6 +532,29 @@ def mixed_over_double(med, c):
     return float(dbl["t"]) / float(mixed["t"]), note.replace("(paper: ", "(claim read at ") + ", CLL", related
 
 
+# ---------------------------------------------- beyond the paper: the pair loop of CLL
+@claim("masked_over_gather")
+def masked_over_gather(med, c):
+    """Time per step of pair_loop=gather over pair_loop=masked, CLL, double,
+    no KGC; related, the same ratio with KGC and in mixed precision, the
+    force phase's ratio, and the kernel lanes evaluated per pair."""
+    if "pair_loop" not in med:
+        raise NotMeasured("no pair_loop axis in the results")
+    n, note = _at(med, c)
+    at = {"particles": n, "list": "cll", "threads": 1}
+    gather = _row(med, pair_loop="gather", precision="double", kgc=0, **at)
+    masked = _row(med, pair_loop="masked", precision="double", kgc=0, **at)
+    related = {"force_phase": float(gather["s_force"]) / float(masked["s_force"])}
+    for name, where in (("KGC", {"precision": "double", "kgc": 1}), ("mixed", {"precision": "mixed", "kgc": 0})):
+        try:
+            related[name] = _one(med, pair_loop="gather", **where, **at) / _one(med, pair_loop="masked", **where, **at)
+        except NotMeasured:
+            pass
+    if "kernel_lanes_per_pair" in masked:
+        related["kernel_lanes_per_pair"] = float(masked["kernel_lanes_per_pair"])
+    return float(gather["t"]) / float(masked["t"]), note.replace("(paper: ", "(claim read at ") + ", CLL, double", related
+
+
 # ------------------------------------------------- beyond the paper: ranks (mpi kind)
 def _on(med, ranks, threads, **equal):
     """Rows of the layout `ranks` x `threads`."""

@@ -36,17 +36,37 @@ struct CubicSpline {
 
   /// W at q = r/h in [0, 2], eq. 1: both pieces of the cubic spline. `Real`
   /// is the arithmetic the caller evaluates in (double, or float for
-  /// precision = mixed); the coefficients are rounded to it once.
+  /// precision = mixed); the coefficients are rounded to it once
+  /// (`Polynomials`).
   template <class Real>
   Real w_of_q(Real q) const {
-    const Real t = Real(2) - q, a = static_cast<Real>(a2);
-    return q <= Real(1) ? a * (Real(1) - Real(1.5) * q * q + Real(0.75) * q * q * q) : Real(0.25) * a * t * t * t;
+    return polynomials<Real>().w_of_q(q);
   }
   /// r F = dW/dr at q = r/h in [0, 2]; F = (dW/dr)/r is this times 1/r.
   template <class Real>
   Real dwdr_of_q(Real q) const {
-    const Real t = Real(2) - q;
-    return q <= Real(1) ? (static_cast<Real>(c1) * q + static_cast<Real>(d1) * q * q) : static_cast<Real>(c2) * t * t;
+    return polynomials<Real>().dwdr_of_q(q);
+  }
+
+  /// The two polynomials with their coefficients in `Real`. A pair loop
+  /// keeps one outside the loop: rounding a coefficient inside it would put
+  /// a conversion (which may raise an FP exception) in each branch of the
+  /// select, and GCC then keeps the branch instead of vectorising.
+  template <class Real>
+  struct Polynomials {
+    Real a2, c1, d1, c2;
+    Real w_of_q(Real q) const {
+      const Real t = Real(2) - q;
+      return q <= Real(1) ? a2 * (Real(1) - Real(1.5) * q * q + Real(0.75) * q * q * q) : Real(0.25) * a2 * t * t * t;
+    }
+    Real dwdr_of_q(Real q) const {
+      const Real t = Real(2) - q;
+      return q <= Real(1) ? (c1 * q + d1 * q * q) : c2 * t * t;
+    }
+  };
+  template <class Real>
+  Polynomials<Real> polynomials() const {
+    return {static_cast<Real>(a2), static_cast<Real>(c1), static_cast<Real>(d1), static_cast<Real>(c2)};
   }
 
   /// W(r), eq. 1.

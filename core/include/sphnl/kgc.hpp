@@ -43,12 +43,14 @@ struct KgcMatrixPass {
     const CubicSpline k = phys->kernel;
     const Home a(v, i);
     double acc[6][kPairBlock] = {};
+    int width = kPairBlock;  // hidden from the optimiser, as in ForceOp::interact_blocks
+    asm("" : "+r"(width));
     for (int b = 0; b < blocks; ++b) {
-      const std::uint32_t j0 = first[b];
+      const std::size_t j0 = first[b];  // size_t: j0 + p must be affine for the vectoriser
       const unsigned bits = lanes[b];
 #pragma omp simd if(simd : Simd)
-      for (int p = 0; p < kPairBlock; ++p) {
-        const Terms t = pair(k, a, v, j0 + static_cast<std::uint32_t>(p), ((bits >> p) & 1u) != 0);
+      for (int p = 0; p < width; ++p) {
+        const Terms t = pair(k, a, v, j0 + static_cast<std::size_t>(p), ((bits >> p) & 1u) != 0);
         for (int c = 0; c < 6; ++c) acc[c][p] += t.m[c];
       }
     }
@@ -71,7 +73,7 @@ struct KgcMatrixPass {
   /// The one pair of the pre-pass, applied to j in place and returned for i;
   /// `live` false gives exact zeros (a lane of a block that is not a pair).
   [[gnu::always_inline]] static inline Terms pair(const CubicSpline& k, const Home& a, const ParticleView& v,
-                                                  std::uint32_t j, bool live) {
+                                                  std::size_t j, bool live) {
     const double dx = a.x - v.x[j], dy = a.y - v.y[j], dz = a.z - v.z[j];
     const double r = std::sqrt(live ? dx * dx + dy * dy + dz * dz : 1.0);
     const double f = live ? k.dwdr_of_q(r * k.inv_h) / r : 0.0;  // F = (dW/dr)/r

@@ -41,7 +41,8 @@ struct ForceOp {
 
   /// Particle i interacts with js[0..n) (all distinct, all with r < 2h).
   template <class T>
-  void interact(const BasicParticleView<T>& v, std::uint32_t i, const std::uint32_t* __restrict js, int n) {
+  void interact(const BasicParticleView<T>& view, std::uint32_t i, const std::uint32_t* __restrict js, int n) {
+    const BasicParticleView<T> v = view;  // a local copy: its pointers stay in registers through the loop
     const Constants c(*phys);
     const Home<T> a(v, i);
     Sum<T> axa = 0, aya = 0, aza = 0, drhoa = 0, uxa = 0, uya = 0, uza = 0;
@@ -51,7 +52,8 @@ struct ForceOp {
       const Terms t = pair(c, a, v, js[p], true);
       axa -= t.ax; aya -= t.ay; aza -= t.az; drhoa += t.drho;
       uxa -= t.ux; uya -= t.uy; uza -= t.uz;
-      mu_max = std::max(mu_max, std::fabs(t.mu));
+      const R mu_abs = std::fabs(t.mu);
+      mu_max = mu_max < mu_abs ? mu_abs : mu_max;
     }
     finish(v, i, axa, aya, aza, drhoa, uxa, uya, uza, mu_max);
   }
@@ -63,8 +65,9 @@ struct ForceOp {
   /// that are not pairs contribute exact zeros. Entries up to first[b] + 7
   /// must be readable and finite (the gather buffer's slack).
   template <class T>
-  void interact_blocks(const BasicParticleView<T>& v, std::uint32_t i, const std::uint32_t* __restrict first,
+  void interact_blocks(const BasicParticleView<T>& view, std::uint32_t i, const std::uint32_t* __restrict first,
                        const std::uint8_t* __restrict lanes, int blocks) {
+    const BasicParticleView<T> v = view;  // as in interact
     const Constants c(*phys);
     const Home<T> a(v, i);
     // Per-lane partial sums across the blocks: one horizontal sum per
@@ -76,14 +79,15 @@ struct ForceOp {
     int width = kPairBlock;
     asm("" : "+r"(width));
     for (int b = 0; b < blocks; ++b) {
-      const std::uint32_t j0 = first[b];
+      const std::size_t j0 = first[b];  // size_t: j0 + p must be affine for the vectoriser
       const unsigned bits = lanes[b];
 #pragma omp simd if(simd : Simd)
       for (int p = 0; p < width; ++p) {
-        const Terms t = pair(c, a, v, j0 + static_cast<std::uint32_t>(p), ((bits >> p) & 1u) != 0);
+        const Terms t = pair(c, a, v, j0 + static_cast<std::size_t>(p), ((bits >> p) & 1u) != 0);
         acc[0][p] -= t.ax; acc[1][p] -= t.ay; acc[2][p] -= t.az; acc[3][p] += t.drho;
         acc[4][p] -= t.ux; acc[5][p] -= t.uy; acc[6][p] -= t.uz;
-        mu_lane[p] = std::max(mu_lane[p], std::fabs(t.mu));
+        const R mu_abs = std::fabs(t.mu);
+        mu_lane[p] = mu_lane[p] < mu_abs ? mu_abs : mu_lane[p];
       }
     }
     Sum<T> total[7] = {};
@@ -104,10 +108,10 @@ struct ForceOp {
 
   /// The constants of the pair, in the pair's arithmetic.
   struct Constants {
-    CubicSpline k;  // a local copy: the stores of the loop cannot alias it
+    CubicSpline::Polynomials<R> k;  // a local copy: the stores of the loop cannot alias it
     R h, inv_h, inv_w_dp, eta2, alpha, eps;
     explicit Constants(const PhysicsParams& ph)
-        : k(ph.kernel), h(static_cast<R>(k.h)), inv_h(static_cast<R>(k.inv_h)), inv_w_dp(static_cast<R>(k.inv_w_dp)),
+        : k(ph.kernel.polynomials<R>()), h(static_cast<R>(ph.kernel.h)), inv_h(static_cast<R>(ph.kernel.inv_h)), inv_w_dp(static_cast<R>(ph.kernel.inv_w_dp)),
           eta2(static_cast<R>(ph.eta2)), alpha(static_cast<R>(ph.alpha)), eps(static_cast<R>(ph.xsph_epsilon)) {}
   };
 
@@ -137,7 +141,7 @@ struct ForceOp {
   /// an exact zero; r^2 is replaced first so nothing divides by zero.
   template <class T>
   [[gnu::always_inline]] static inline Terms pair(const Constants& c, const Home<T>& a, const BasicParticleView<T>& v,
-                                                  std::uint32_t j, bool live) {
+                                                  std::size_t j, bool live) {
     const R dx = static_cast<R>(a.x - v.x[j]), dy = static_cast<R>(a.y - v.y[j]), dz = static_cast<R>(a.z - v.z[j]);
     const R r2_pair = dx * dx + dy * dy + dz * dz;
     const R r2 = live ? r2_pair : R(1);
