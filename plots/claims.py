@@ -496,17 +496,19 @@ PRECISION_SOURCES = (("CLL+KGC", {"list": "cll", "kgc": 1}), ("VL_X", {"list": "
                      ("VL_X+KGC", {"list": "vlx", "kgc": 1}))
 
 
-def _precision_row(med, n, precision, list="cll", kgc=0):
+def _precision_row(med, n, precision, list="cll", kgc=0, **more):
     if "precision" not in med:
         raise NotMeasured("no precision axis in the results")
-    return _row(med, particles=n, precision=precision, list=list, kgc=kgc, threads=1)
+    return _row(med, particles=n, precision=precision, list=list, kgc=kgc, threads=1, **more)
 
 
-def _us_per_particle_step(med, c, precision):
+def _us_per_particle_step(med, c, precision, **more):
     """Seconds per step over the particles simulated, CLL without KGC, one
-    thread; related, the force phase alone."""
+    thread; related, the force phase alone. `more`: further axes (pair_loop)."""
+    if any(k not in med for k in more):
+        raise NotMeasured("no " + ", ".join(more) + " axis in the results")
     n, note = _at(med, c)
-    row = _precision_row(med, n, precision)
+    row = _precision_row(med, n, precision, **more)
     n_sim = float(row["N"])
     return (1e6 * float(row["t"]) / n_sim, note.replace("(paper: ", "(claim read at ") + ", CLL, one thread",
             {"force_us_per_particle_step": 1e6 * float(row["s_force"]) / n_sim})
@@ -514,6 +516,8 @@ def _us_per_particle_step(med, c, precision):
 
 for _precision in ("double", "mixed"):
     CLAIMS[f"step_us_{_precision}"] = functools.partial(_us_per_particle_step, precision=_precision)
+    CLAIMS[f"step_us_{_precision}_masked"] = functools.partial(_us_per_particle_step, precision=_precision,
+                                                               pair_loop="masked")
 
 
 @claim("mixed_over_double")
