@@ -85,8 +85,7 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
   c["candidates_per_particle"] = 2.0 * static_cast<double>(s.candidates) / steps / n;
   c["interactions_per_particle"] = 2.0 * static_cast<double>(s.interactions) / steps / n;
   c["pairs_per_s"] = static_cast<double>(s.interactions) / t.force;
-  c["kernel_lanes_per_pair"] =
-      s.interactions ? 1.0 + static_cast<double>(s.idle_lanes) / static_cast<double>(s.interactions) : 0.0;
+  c["kernel_lanes_per_pair"] = s.kernel_lanes_per_pair();
   // The force phase on the roofline (docs/PERFORMANCE.md): pairs x flops per
   // pair as the kernels' source counts them, against threads x this core's
   // FMA peak. Not in the counters family (time means nothing under valgrind).

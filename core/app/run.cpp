@@ -205,9 +205,7 @@ json run_summary(const Simulation& sim, double initial_mass, double wall_total_s
                           {"interactions", st.interactions},
                           {"candidates_per_particle", 2.0 * static_cast<double>(st.candidates) / particle_steps},
                           {"interactions_per_particle", 2.0 * static_cast<double>(st.interactions) / particle_steps},
-                          // kernel lanes per pair evaluated: 1, more with pair_loop=masked
-                          {"kernel_lanes_per_pair",
-                           st.interactions ? 1.0 + static_cast<double>(st.idle_lanes) / static_cast<double>(st.interactions) : 0.0},
+                          {"kernel_lanes_per_pair", st.kernel_lanes_per_pair()},
                           {"max_steps_per_list", st.max_steps_per_list},
                           {"mean_steps_per_list", st.mean_steps_per_list()},
                           {"interacting_fraction_of_candidates",

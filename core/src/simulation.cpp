@@ -68,10 +68,7 @@ void Simulation::init(Communicator* comm) {
   if (config_.pair_loop == PairLoopKind::masked && config_.list != ListKind::cll)
     throw ConfigError("pair_loop = masked applies to the cell-linked list (list = cll); a Verlet list's loop "
                       "reads stored pairs, not consecutive cell entries; use pair_loop = gather");
-  if (config_.pair_loop == PairLoopKind::masked && config_.skip_boundary_pairs)
-    throw ConfigError("skip_boundary_pairs = true needs pair_loop = gather (it picks the fluid entries of the "
-                      "gathered cells); use one of the two");
-  if (config_.pair_loop == PairLoopKind::direct && config_.skip_boundary_pairs)
+  if (config_.pair_loop != PairLoopKind::gather && config_.skip_boundary_pairs)
     throw ConfigError("skip_boundary_pairs = true needs pair_loop = gather (it picks the fluid entries of the "
                       "gathered cells); use one of the two");
   if (config_.pair_loop == PairLoopKind::direct && case_.period_y > 0)

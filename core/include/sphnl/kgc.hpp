@@ -43,17 +43,10 @@ struct KgcMatrixPass {
     const CubicSpline k = phys->kernel;
     const Home a(v, i);
     double acc[6][kPairBlock] = {};
-    int width = kPairBlock;  // hidden from the optimiser, as in ForceOp::interact_blocks
-    asm("" : "+r"(width));
-    for (int b = 0; b < blocks; ++b) {
-      const std::size_t j0 = first[b];  // size_t: j0 + p must be affine for the vectoriser
-      const unsigned bits = lanes[b];
-#pragma omp simd if(simd : Simd)
-      for (int p = 0; p < width; ++p) {
-        const Terms t = pair(k, a, v, j0 + static_cast<std::size_t>(p), ((bits >> p) & 1u) != 0);
-        for (int c = 0; c < 6; ++c) acc[c][p] += t.m[c];
-      }
-    }
+    for_each_block_lane<Simd>(first, lanes, blocks, [&](int p, std::size_t j, bool live) SPHNL_INLINE_LANE {
+      const Terms t = pair(k, a, v, j, live);
+      for (int c = 0; c < 6; ++c) acc[c][p] += t.m[c];
+    });
     for (int c = 0; c < 6; ++c) {
       double sum = 0;
       for (int p = 0; p < kPairBlock; ++p) sum += acc[c][p];

@@ -41,8 +41,7 @@ struct ForceOp {
 
   /// Particle i interacts with js[0..n) (all distinct, all with r < 2h).
   template <class T>
-  void interact(const BasicParticleView<T>& view, std::uint32_t i, const std::uint32_t* __restrict js, int n) {
-    const BasicParticleView<T> v = view;  // a local copy: its pointers stay in registers through the loop
+  void interact(const BasicParticleView<T>& v, std::uint32_t i, const std::uint32_t* __restrict js, int n) {
     const Constants c(*phys);
     const Home<T> a(v, i);
     Sum<T> axa = 0, aya = 0, aza = 0, drhoa = 0, uxa = 0, uya = 0, uza = 0;
@@ -65,31 +64,21 @@ struct ForceOp {
   /// that are not pairs contribute exact zeros. Entries up to first[b] + 7
   /// must be readable and finite (the gather buffer's slack).
   template <class T>
-  void interact_blocks(const BasicParticleView<T>& view, std::uint32_t i, const std::uint32_t* __restrict first,
+  void interact_blocks(const BasicParticleView<T>& v, std::uint32_t i, const std::uint32_t* __restrict first,
                        const std::uint8_t* __restrict lanes, int blocks) {
-    const BasicParticleView<T> v = view;  // as in interact
     const Constants c(*phys);
     const Home<T> a(v, i);
     // Per-lane partial sums across the blocks: one horizontal sum per
     // particle i, not one per block.
     Sum<T> acc[7][kPairBlock] = {};
     Real mu_lane[kPairBlock] = {};
-    // kPairBlock hidden from the optimiser: with a known trip count of 8 GCC
-    // unrolls the lane loop into scalar code before the vectoriser sees it.
-    int width = kPairBlock;
-    asm("" : "+r"(width));
-    for (int b = 0; b < blocks; ++b) {
-      const std::size_t j0 = first[b];  // size_t: j0 + p must be affine for the vectoriser
-      const unsigned bits = lanes[b];
-#pragma omp simd if(simd : Simd)
-      for (int p = 0; p < width; ++p) {
-        const Terms t = pair(c, a, v, j0 + static_cast<std::size_t>(p), ((bits >> p) & 1u) != 0);
-        acc[0][p] -= t.ax; acc[1][p] -= t.ay; acc[2][p] -= t.az; acc[3][p] += t.drho;
-        acc[4][p] -= t.ux; acc[5][p] -= t.uy; acc[6][p] -= t.uz;
-        const R mu_abs = std::fabs(t.mu);
-        mu_lane[p] = mu_lane[p] < mu_abs ? mu_abs : mu_lane[p];
-      }
-    }
+    for_each_block_lane<Simd>(first, lanes, blocks, [&](int p, std::size_t j, bool live) SPHNL_INLINE_LANE {
+      const Terms t = pair(c, a, v, j, live);
+      acc[0][p] -= t.ax; acc[1][p] -= t.ay; acc[2][p] -= t.az; acc[3][p] += t.drho;
+      acc[4][p] -= t.ux; acc[5][p] -= t.uy; acc[6][p] -= t.uz;
+      const R mu_abs = std::fabs(t.mu);
+      mu_lane[p] = mu_lane[p] < mu_abs ? mu_abs : mu_lane[p];
+    });
     Sum<T> total[7] = {};
     Real mu_max = static_cast<Real>(max_mu);
     for (int p = 0; p < kPairBlock; ++p) {

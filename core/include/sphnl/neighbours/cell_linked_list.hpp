@@ -29,14 +29,12 @@ class CellLinkedList {
   PairCounts for_each_pair(const ParticleGrid& pg, ParticleSet& ps, std::vector<Op>& ops, double support2,
                            const PairLoopOptions& options = {}) {
     counts_.assign(ops.size(), PairCounts{});
+    if (options.skip_boundary_pairs && options.loop != PairLoopKind::gather)
+      throw std::logic_error("skip_boundary_pairs needs the gather loop (pair_loop=gather)");
     if (options.loop == PairLoopKind::direct) {
-      if (options.skip_boundary_pairs)
-        throw std::logic_error("skip_boundary_pairs needs the gather loop (pair_loop=gather)");
       if (options.simd) direct<true>(pg, ps, ops, support2, options.updates);
       else direct<false>(pg, ps, ops, support2, options.updates);
     } else if (options.loop == PairLoopKind::masked) {
-      if (options.skip_boundary_pairs)
-        throw std::logic_error("skip_boundary_pairs needs the gather loop (pair_loop=gather)");
       if (options.simd) masked<true>(pg, ps, ops, support2, options.updates);
       else masked<false>(pg, ps, ops, support2, options.updates);
     } else if (options.skip_boundary_pairs) {
@@ -104,7 +102,7 @@ class CellLinkedList {
   }
 
   /// An operation without interact_blocks gets the blocks' pairs as a list
-  /// (in the same order), written after the blocks in the survivors' room.
+  /// (in the same order), collected in the thread's `block_pairs`.
   template <PairOperation Op, class View>
   static void run_blocks(Op& op, const View& v, std::uint32_t i, const std::uint32_t* first, const std::uint8_t* lanes,
                          int blocks, CellSweep::Scratch& s) {

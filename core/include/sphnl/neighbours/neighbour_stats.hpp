@@ -27,6 +27,10 @@ struct NeighbourStats {
   // sum over them of sum_a trace(M_a) (their result, kept so it is observable)
   std::uint64_t extra_loop_passes = 0;
   double extra_loop_checksum = 0;
+  /// Pair-kernel lanes evaluated per pair: 1, more with pair_loop=masked.
+  double kernel_lanes_per_pair() const {
+    return interactions ? 1.0 + static_cast<double>(idle_lanes) / static_cast<double>(interactions) : 0.0;
+  }
   /// Mean steps per list: lifetimes of the lists built (CLL: 1).
   double mean_steps_per_list() const {
     return builds ? static_cast<double>(list_steps ? list_steps : builds) / static_cast<double>(builds) : 0.0;

@@ -37,6 +37,7 @@
 
 #include "sphnl/kernel.hpp"
 #include "sphnl/neighbours/distance.hpp"
+#include "sphnl/neighbours/pair_operation.hpp"
 #include "sphnl/particle_view.hpp"
 
 namespace sphnl {
@@ -163,11 +164,6 @@ inline int filter_range(const ParticleView& v, std::uint32_t i, std::uint32_t j0
   }
   return n;
 }
-
-/// The lanes of j-blocks: `pair_loop=masked` hands the pair kernel whole
-/// blocks of kPairBlock consecutive candidates with a lane mask instead of a
-/// compacted list (PairBlocks).
-inline constexpr int kPairBlock = 8;
 
 /// Candidates j0..j1-1 (contiguous) of particle i, tested as filter_range does
 /// (the same pairs survive), in blocks of kPairBlock from j0: writes the

@@ -14,17 +14,45 @@
 //             a lane mask (pair_loop=masked, filter_blocks); an operation
 //             without it is handed the blocks' pairs as a list.
 #include <concepts>
+#include <cstddef>
 #include <cstdint>
 
 #include "sphnl/particle_view.hpp"
 
 namespace sphnl {
 
+/// The lanes of a j-block: `pair_loop=masked` hands the pair kernel whole
+/// blocks of kPairBlock consecutive candidates with a lane mask instead of a
+/// compacted list (filter_blocks writes them).
+inline constexpr int kPairBlock = 8;
+
 template <class Op>
 concept PairOperation = requires(Op& op, const ParticleView& v, std::uint32_t i, const std::uint32_t* js, int n) {
   { Op::kFields } -> std::convertible_to<unsigned>;
   op.interact(v, i, js, n);
 };
+
+/// Put after a lane lambda's parameters: the lane must be inlined into the
+/// vector loop of for_each_block_lane (a call would keep it scalar).
+#define SPHNL_INLINE_LANE __attribute__((always_inline))
+
+/// The lanes of an interact_blocks call: lane(p, j, live) for lane p of every
+/// block, j its entry, `live` whether it is a pair; each block's lanes form
+/// one vector loop (`Simd` = false: kept scalar, the ablation simd=off).
+template <bool Simd, class Lane>
+[[gnu::always_inline]] inline void for_each_block_lane(const std::uint32_t* __restrict first,
+                                                       const std::uint8_t* __restrict lanes, int blocks, Lane&& lane) {
+  // The block width hidden from the optimiser: with a known trip count of 8
+  // GCC unrolls the lane loop into scalar code before the vectoriser sees it.
+  int width = kPairBlock;
+  asm("" : "+r"(width));
+  for (int b = 0; b < blocks; ++b) {
+    const std::size_t j0 = first[b];  // size_t: j0 + p must be affine for the vectoriser
+    const unsigned bits = lanes[b];
+#pragma omp simd if(simd : Simd)
+    for (int p = 0; p < width; ++p) lane(p, j0 + static_cast<std::size_t>(p), ((bits >> p) & 1u) != 0);
+  }
+}
 
 template <class Op, class View>
 concept BlockPairOperation = requires(Op& op, const View& v, std::uint32_t i, const std::uint32_t* first,
