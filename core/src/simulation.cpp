@@ -55,6 +55,11 @@ Simulation::Simulation(const RunConfig& config, Case c, const PhysicsParams& phy
 }
 
 void Simulation::init(Communicator* comm) {
+  // The pair loops gather with signed 32-bit indices (gather_index).
+  if (ps_.size() > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
+    throw ConfigError("the case has " + std::to_string(ps_.size()) + " particles; at most " +
+                      std::to_string(std::numeric_limits<std::int32_t>::max()) +
+                      " are supported (32-bit pair indices); use a coarser dp or split it over MPI ranks");
   if (config_.list_steps < 1)
     throw ConfigError("list_steps must be >= 1 (n_s, the steps a Verlet list is meant to live); got " +
                       std::to_string(config_.list_steps));

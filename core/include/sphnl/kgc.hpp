@@ -30,7 +30,7 @@ struct KgcMatrixPass {
     double mxx = 0, mxy = 0, mxz = 0, myy = 0, myz = 0, mzz = 0;
 #pragma omp simd reduction(+ : mxx, mxy, mxz, myy, myz, mzz) if(simd : Simd)
     for (int p = 0; p < n; ++p) {
-      const Terms t = pair(k, a, v, js[p], true);
+      const Terms t = pair(k, a, v, gather_index(js[p]), true);
       mxx += t.m[0]; mxy += t.m[1]; mxz += t.m[2]; myy += t.m[3]; myz += t.m[4]; mzz += t.m[5];
     }
     const double sums[6] = {mxx, mxy, mxz, myy, myz, mzz};
@@ -65,8 +65,9 @@ struct KgcMatrixPass {
 
   /// The one pair of the pre-pass, applied to j in place and returned for i;
   /// `live` false gives exact zeros (a lane of a block that is not a pair).
+  template <class Index>
   [[gnu::always_inline]] static inline Terms pair(const CubicSpline& k, const Home& a, const ParticleView& v,
-                                                  std::size_t j, bool live) {
+                                                  Index j, bool live) {
     const double dx = a.x - v.x[j], dy = a.y - v.y[j], dz = a.z - v.z[j];
     const double r = std::sqrt(live ? dx * dx + dy * dy + dz * dz : 1.0);
     const double f = live ? k.dwdr_of_q(r * k.inv_h) / r : 0.0;  // F = (dW/dr)/r

@@ -44,14 +44,18 @@ struct ForceOp {
   void interact(const BasicParticleView<T>& v, std::uint32_t i, const std::uint32_t* __restrict js, int n) {
     const Constants c(*phys);
     const Home<T> a(v, i);
+    // Every reduction in the view's type, mu_max too: GCC sizes the omp simd
+    // reductions' lane arrays per type, and with double sums beside a float
+    // maximum (a Verlet list's loop in precision=mixed) it finds no vector
+    // type for the mix and leaves the loop scalar.
     Sum<T> axa = 0, aya = 0, aza = 0, drhoa = 0, uxa = 0, uya = 0, uza = 0;
-    Real mu_max = static_cast<Real>(max_mu);
+    Sum<T> mu_max = static_cast<Sum<T>>(max_mu);
 #pragma omp simd reduction(+ : axa, aya, aza, drhoa, uxa, uya, uza) reduction(max : mu_max) if(simd : Simd)
     for (int p = 0; p < n; ++p) {
-      const Terms t = pair(c, a, v, js[p], true);
+      const Terms t = pair(c, a, v, gather_index(js[p]), true);
       axa -= t.ax; aya -= t.ay; aza -= t.az; drhoa += t.drho;
       uxa -= t.ux; uya -= t.uy; uza -= t.uz;
-      const R mu_abs = std::fabs(t.mu);
+      const Sum<T> mu_abs = std::fabs(static_cast<Sum<T>>(t.mu));
       mu_max = mu_max < mu_abs ? mu_abs : mu_max;
     }
     finish(v, i, axa, aya, aza, drhoa, uxa, uya, uza, mu_max);
@@ -126,11 +130,11 @@ struct ForceOp {
   };
 
   /// The one pair: (i, j) with r < 2h, applied to j in place and returned for
-  /// i. With `live` false (a lane of a block that is not a pair) every term is
+  /// i; j is a gather_index (compacted loop) or a size_t (masked loop). With `live` false (a lane of a block that is not a pair) every term is
   /// an exact zero; r^2 is replaced first so nothing divides by zero.
-  template <class T>
+  template <class T, class Index>
   [[gnu::always_inline]] static inline Terms pair(const Constants& c, const Home<T>& a, const BasicParticleView<T>& v,
-                                                  std::size_t j, bool live) {
+                                                  Index j, bool live) {
     const R dx = static_cast<R>(a.x - v.x[j]), dy = static_cast<R>(a.y - v.y[j]), dz = static_cast<R>(a.z - v.z[j]);
     const R r2_pair = dx * dx + dy * dy + dz * dz;
     const R r2 = live ? r2_pair : R(1);
@@ -186,7 +190,7 @@ struct ForceOp {
 
   template <class T>
   void finish(const BasicParticleView<T>& v, std::uint32_t i, Sum<T> axa, Sum<T> aya, Sum<T> aza, Sum<T> drhoa,
-              Sum<T> uxa, Sum<T> uya, Sum<T> uza, R mu_max) {
+              Sum<T> uxa, Sum<T> uya, Sum<T> uza, Sum<T> mu_max) {
     v.ax[i] += axa; v.ay[i] += aya; v.az[i] += aza; v.drho[i] += drhoa;
     v.ux[i] += uxa; v.uy[i] += uya; v.uz[i] += uza;
     max_mu = mu_max;

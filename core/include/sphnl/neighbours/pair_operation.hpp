@@ -32,6 +32,14 @@ concept PairOperation = requires(Op& op, const ParticleView& v, std::uint32_t i,
   op.interact(v, i, js, n);
 };
 
+/// A compacted list's entry as the index of a vector gather. Signed 32 bits:
+/// x86 gathers take signed 32-bit indices, so GCC gathers with them directly;
+/// from an unsigned 32-bit index it must widen to 64 bits, and for float
+/// fields (16 lanes, two vectors of 64-bit indices) it finds no vector type
+/// and leaves the whole loop scalar (the compacted loop of precision=mixed
+/// was). Particle counts are limited to 2^31 - 1 (Simulation checks).
+[[gnu::always_inline]] inline std::int32_t gather_index(std::uint32_t j) { return static_cast<std::int32_t>(j); }
+
 /// Put after a lane lambda's parameters: the lane must be inlined into the
 /// vector loop of for_each_block_lane (a call would keep it scalar).
 #define SPHNL_INLINE_LANE __attribute__((always_inline))
