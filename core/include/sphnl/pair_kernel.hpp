@@ -130,8 +130,9 @@ struct ForceOp {
   };
 
   /// The one pair: (i, j) with r < 2h, applied to j in place and returned for
-  /// i; j is a gather_index (compacted loop) or a size_t (masked loop). With `live` false (a lane of a block that is not a pair) every term is
-  /// an exact zero; r^2 is replaced first so nothing divides by zero.
+  /// i; j is a gather_index (compacted loop) or a size_t (masked loop). With
+  /// `live` false (a lane of a block that is not a pair) every term is an
+  /// exact zero; r^2 is replaced first so nothing divides by zero.
   template <class T, class Index>
   [[gnu::always_inline]] static inline Terms pair(const Constants& c, const Home<T>& a, const BasicParticleView<T>& v,
                                                   Index j, bool live) {
