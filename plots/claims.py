@@ -491,6 +491,46 @@ def sphnl_over_nanoflann(med, c):
         f"{note}; geometric mean over {len(common)} paired configurations", related
 
 
+# ------------------------------------------- beyond the paper: what the public API costs
+def _search_seconds(med, n, impl, threads):
+    """Median seconds of one call (full lists) of `impl` at N = n on `threads`."""
+    if "impl" not in med or "s_call" not in med:
+        raise NotMeasured("no impl axis or s_call counter in the results (the search family)")
+    return _one(med, col="s_call", particles=n, impl=impl, threads=threads)
+
+
+def _api_over_engine(med, c, impl):
+    """Seconds per call of the public API's `impl` over the bare engine's, one
+    thread; related, the same on two threads."""
+    n, note = _at(med, c)
+    related = {}
+    try:
+        related["two_threads"] = _search_seconds(med, n, impl, 2) / _search_seconds(med, n, "sphnl", 2)
+    except NotMeasured:
+        pass
+    return (_search_seconds(med, n, impl, 1) / _search_seconds(med, n, "sphnl", 1),
+            note.replace("(paper: ", "(claim read at ") + ", one thread", related)
+
+
+CLAIMS["api_visit_over_engine"] = functools.partial(_api_over_engine, impl="api_visit")
+CLAIMS["api_rows_over_engine"] = functools.partial(_api_over_engine, impl="api")
+
+
+@claim("search_two_threads_over_one")
+def search_two_threads_over_one(med, c):
+    """Speed-up of the bare engine's full lists on two threads over one;
+    related, the same for the API's two ways out."""
+    n, note = _at(med, c)
+    related = {}
+    for impl in ("api_visit", "api"):
+        try:
+            related[impl] = _search_seconds(med, n, impl, 1) / _search_seconds(med, n, impl, 2)
+        except NotMeasured:
+            pass
+    return (_search_seconds(med, n, "sphnl", 1) / _search_seconds(med, n, "sphnl", 2),
+            note.replace("(paper: ", "(claim read at ") + ", engine", related)
+
+
 # ------------------------------------- beyond the paper: precision of the pair kernel
 PRECISION_SOURCES = (("CLL+KGC", {"list": "cll", "kgc": 1}), ("VL_X", {"list": "vlx", "kgc": 0}),
                      ("VL_X+KGC", {"list": "vlx", "kgc": 1}))
@@ -557,6 +597,52 @@ def masked_over_gather(med, c):
     if "kernel_lanes_per_pair" in masked:
         related["kernel_lanes_per_pair"] = float(masked["kernel_lanes_per_pair"])
     return float(gather["t"]) / float(masked["t"]), note.replace("(paper: ", "(claim read at ") + ", CLL, double", related
+
+
+# --------------------------------------------- beyond the paper: two threads, one step
+def _split_row(med, n, threads, thread_split, thread_updates):
+    if "thread_split" not in med or "thread_updates" not in med:
+        raise NotMeasured("no thread_split or thread_updates axis in the results")
+    return _row(med, particles=n, list="cll", threads=threads, thread_split=thread_split,
+                thread_updates=thread_updates)
+
+
+@claim("step_two_threads_over_one")
+def step_two_threads_over_one(med, c):
+    """Seconds per step on one thread over two, CLL, split by interactions,
+    phased updates; related, the other three ways of two threads and the
+    force phase's speed-up."""
+    n, note = _at(med, c)
+    one = _split_row(med, n, 1, "interactions", "phased")
+    two = _split_row(med, n, 2, "interactions", "phased")
+    related = {"force_phase": float(one["s_force"]) / float(two["s_force"])}
+    for split in ("fluid", "interactions"):
+        for updates in ("private", "phased"):
+            if (split, updates) == ("interactions", "phased"):
+                continue
+            try:
+                related[f"{split}_{updates}"] = float(_split_row(med, n, 1, split, updates)["t"]) / \
+                    float(_split_row(med, n, 2, split, updates)["t"])
+            except NotMeasured:
+                pass
+    return float(one["t"]) / float(two["t"]), note.replace("(paper: ", "(claim read at ") + \
+        ", CLL, thread_split=interactions, thread_updates=phased", related
+
+
+@claim("interactions_split_over_fluid")
+def interactions_split_over_fluid(med, c):
+    """Seconds per step on two threads split by fluid over split by
+    interactions, CLL, phased; related, the same with private updates."""
+    n, note = _at(med, c)
+    related = {}
+    try:
+        related["private_updates"] = float(_split_row(med, n, 2, "fluid", "private")["t"]) / \
+            float(_split_row(med, n, 2, "interactions", "private")["t"])
+    except NotMeasured:
+        pass
+    return float(_split_row(med, n, 2, "fluid", "phased")["t"]) / \
+        float(_split_row(med, n, 2, "interactions", "phased")["t"]), \
+        note.replace("(paper: ", "(claim read at ") + ", CLL, two threads, thread_updates=phased", related
 
 
 # ------------------------------------------------- beyond the paper: ranks (mpi kind)

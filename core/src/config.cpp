@@ -21,6 +21,7 @@ constexpr std::array kSlidingNames{"occupied", "shift_all"};
 constexpr std::array kInitialOrderNames{"generated", "shuffled"};
 constexpr std::array kOnOffNames{"on", "off"};
 constexpr std::array kThreadUpdateNames{"private", "phased"};
+constexpr std::array kThreadSplitNames{"fluid", "interactions"};
 constexpr std::array kPrecisionNames{"double", "mixed"};
 constexpr std::array kBalanceNames{"interactions", "particles"};
 constexpr std::array kSnapshotPiecesNames{"gathered", "per_rank"};
@@ -113,6 +114,8 @@ const std::vector<Key>& key_table() {
        [](const RunConfig& c) { return json(c.threads); }},
       {"thread_updates", [](RunConfig& c, const json& v) { c.thread_updates = get_enum<ThreadUpdates>("thread_updates", v, kThreadUpdateNames); },
        [](const RunConfig& c) { return json(to_string(c.thread_updates)); }},
+      {"thread_split", [](RunConfig& c, const json& v) { c.thread_split = get_enum<ThreadSplit>("thread_split", v, kThreadSplitNames); },
+       [](const RunConfig& c) { return json(to_string(c.thread_split)); }},
       {"progress", [](RunConfig& c, const json& v) { c.progress = get_bool("progress", v); },
        [](const RunConfig& c) { return json(c.progress); }},
       {"gridder", [](RunConfig& c, const json& v) { c.gridder = get_enum<GridderKind>("gridder", v, kGridderNames); },

@@ -72,6 +72,8 @@ const std::vector<Axis>& axes() {
       {"extra_loops", {"step", "counters"}, {}, {}},
       // how threads > 1 keep from writing one particle at once (default private)
       {"thread_updates", {"step", "counters"}, {}, {}},
+      // how the cell-linked list cuts its home cells between threads (default fluid)
+      {"thread_split", {"step", "counters"}, {}, {}},
       // the pair kernel's arithmetic (default double)
       {"precision", {"step", "counters"}, {}, {}},
       // the search family's peers and clouds (benchmarks/search_benchmark.cpp;

@@ -32,6 +32,10 @@ const char* to_string(ThreadUpdates u) {
   constexpr const char* names[] = {"private", "phased"};
   return names[static_cast<int>(u)];
 }
+const char* to_string(ThreadSplit s) {
+  constexpr const char* names[] = {"fluid", "interactions"};
+  return names[static_cast<int>(s)];
+}
 const char* to_string(Precision p) {
   constexpr const char* names[] = {"double", "mixed"};
   return names[static_cast<int>(p)];

@@ -86,6 +86,7 @@ void Simulation::init(Communicator* comm) {
   pair_options_.simd = config_.simd;
   pair_options_.skip_boundary_pairs = config_.skip_boundary_pairs;
   pair_options_.updates = config_.thread_updates;
+  pair_options_.split = config_.thread_split;
   if (config_.initial_order == InitialOrder::shuffled) shuffle_memory_order();
   grid_ = make_particle_grid();
   force_ops_.assign(config_.threads, ForceOp<false>{&phys_, 0});

@@ -783,6 +783,61 @@ class TestClaims(unittest.TestCase):
         self.assertEqual(r["verdict"], "partly", r)
         self.assertIn("150 000", r["note"])
 
+    def test_api_and_search_thread_claims(self):
+        """search_api's claims: the API's seconds per call over the engine's
+        (one thread), and the engine's speed-up from one thread to two, read
+        from s_call at N = 1 000 000."""
+        import pandas as pd
+        seconds = {("sphnl", 1): 0.20, ("sphnl", 2): 0.11, ("api_visit", 1): 0.204, ("api_visit", 2): 0.114,
+                   ("api", 1): 0.60, ("api", 2): 0.34}
+        rows = []
+        for rep in range(3):
+            for (impl, threads), t in seconds.items():
+                rows.append({"experiment": "search_api", "family": "search", "particles": 1000000, "gridder": "B",
+                             "cell_order": "sort_x", "reorder": 1, "threads": threads, "impl": impl,
+                             "cloud": "lattice", "memory_order": "generated", "call": "warm",
+                             "repetition_index": rep, "round": rep, "error_occurred": False, "error_message": "",
+                             "run_name": f"search/{impl}/{threads}", "n_particles": 1000000,
+                             "s_call": t * (1 + 0.001 * rep)})
+        data = pd.DataFrame(rows)
+        r = C.evaluate(self.claim("api_visit_over_engine"), data)
+        self.assertAlmostEqual(r["value"], 1.02, places=6)
+        self.assertEqual(r["verdict"], "reproduced", r)
+        r = C.evaluate(self.claim("api_rows_over_engine"), data)
+        self.assertAlmostEqual(r["value"], 3.0, places=6)
+        self.assertEqual(r["verdict"], "not reproduced", r)
+        self.assertAlmostEqual(r["related"]["two_threads"]["value"], 0.34 / 0.11, places=6)
+        r = C.evaluate(self.claim("search_two_threads_over_one"), data)
+        self.assertAlmostEqual(r["value"], 0.20 / 0.11, places=6)
+        self.assertEqual(r["verdict"], "reproduced", r)
+        self.assertAlmostEqual(r["related"]["api"]["value"], 0.60 / 0.34, places=6)
+        r = C.evaluate(self.claim("search_two_threads_over_one"), data[data["threads"] == 1])
+        self.assertEqual(r["verdict"], "not measured", r)
+
+    def test_step_thread_claims(self):
+        """beyond_scaling's claims: one thread over two with the split by
+        interactions and phased updates; fluid over interactions on two."""
+        two = {("fluid", "private"): 0.070, ("fluid", "phased"): 0.068,
+               ("interactions", "private"): 0.060, ("interactions", "phased"): 0.055}
+        rows = []
+        for (split, updates), t2 in two.items():
+            base = {"particles": 118853, "gridder": "B", "reorder": 1, "lattice": "cubic", "h_coefficient": 1.0,
+                    "thread_split": split, "thread_updates": updates}
+            rows.append(({**base, "threads": 1}, {"s_per_step": 0.1, "s_force": 0.08}))
+            rows.append(({**base, "threads": 2}, {"s_per_step": t2, "s_force": 0.04}))
+        data = synthetic(rows)
+        r = C.evaluate(self.claim("step_two_threads_over_one"), data)
+        self.assertAlmostEqual(r["value"], 0.1 / 0.055, places=6)
+        self.assertEqual(r["verdict"], "partly", r)
+        self.assertAlmostEqual(r["related"]["fluid_private"]["value"], 0.1 / 0.070, places=6)
+        self.assertAlmostEqual(r["related"]["force_phase"]["value"], 2.0, places=6)
+        r = C.evaluate(self.claim("interactions_split_over_fluid"), data)
+        self.assertAlmostEqual(r["value"], 0.068 / 0.055, places=6)
+        self.assertEqual(r["verdict"], "reproduced", r)
+        no_axis = synthetic([({"particles": 118853, "gridder": "B", "reorder": 1, "threads": t},
+                              {"s_per_step": 0.1}) for t in (1, 2)])
+        self.assertEqual(C.evaluate(self.claim("step_two_threads_over_one"), no_axis)["verdict"], "not measured")
+
     def test_regression_flips_a_claim_end_to_end(self):
         """fake_bench --fake-regress: slowing VL_X turns its gain into a loss."""
         with tempfile.TemporaryDirectory() as tmp:

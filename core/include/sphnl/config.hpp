@@ -47,6 +47,9 @@ struct RunConfig {
   // threads > 1: private accumulator copies summed afterwards (`private`), or
   // home cells in phases where no two threads write one particle (`phased`)
   ThreadUpdates thread_updates = ThreadUpdates::private_accumulators;
+  // threads > 1: the cell-linked list's home cells cut into thread ranges of
+  // equal fluid weight (`fluid`) or equal estimated pair work (`interactions`)
+  ThreadSplit thread_split = ThreadSplit::fluid;
   bool progress = true;
   // neighbour search
   GridderKind gridder = GridderKind::B;

@@ -35,6 +35,14 @@ enum class InitialOrder : std::uint8_t { generated, shuffled };
 /// run in phases in which no two threads write one cell (ThreadPhases).
 enum class ThreadUpdates : std::uint8_t { private_accumulators, phased };
 
+/// How a cell sweep cuts its home cells into one contiguous key range per
+/// thread (config `thread_split`): `fluid`, equal fluid weight (a fluid
+/// particle 1, a boundary one 1/4); or `interactions`, equal estimated pair
+/// work (sweep_pair_work in neighbours/cell_work.hpp: the candidate pairs
+/// with a fluid particle that each home cell meets in itself and its 13
+/// forward cells).
+enum class ThreadSplit : std::uint8_t { fluid, interactions };
+
 /// Arithmetic of the pair kernel (config `precision`): `double` throughout
 /// (config value `double`), or `mixed`: differences of positions and
 /// velocities in double rounded to float, the pair's kernel and terms in
@@ -56,6 +64,7 @@ const char* to_string(PairLoopKind p);
 const char* to_string(SlidingVariant v);
 const char* to_string(InitialOrder o);
 const char* to_string(ThreadUpdates u);
+const char* to_string(ThreadSplit s);
 const char* to_string(Precision p);
 const char* to_string(BalanceBy b);
 

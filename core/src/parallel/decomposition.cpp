@@ -53,25 +53,6 @@ double imbalance(std::span<const double> rank_weights) {
   return *std::max_element(rank_weights.begin(), rank_weights.end()) / mean - 1.0;
 }
 
-void interaction_weights(const CellGrid& grid, const CellOrder& order, std::span<const double> fluid,
-                         std::span<const double> boundary, std::uint32_t key_begin, std::uint32_t key_end,
-                         std::span<double> out) {
-  const auto coords = order.key_coords();
-  for (std::uint32_t key = key_begin; key < key_end; ++key) {
-    if (fluid[key] == 0 && boundary[key] == 0) {
-      out[key] = 0;
-      continue;
-    }
-    // A key holding particles is a real cell (no particle maps to a padding key of kNoCellCoords).
-    double stencil_fluid = 0, stencil_boundary = 0;
-    for_each_stencil_cell(grid, order, CellOrder::unpack_coords(coords[key]), kFullStencil, [&](std::uint32_t k, double) {
-      stencil_fluid += fluid[k];
-      stencil_boundary += boundary[k];
-    });
-    out[key] = fluid[key] * (stencil_fluid + stencil_boundary) + boundary[key] * stencil_fluid;
-  }
-}
-
 void Decomposition::ghost_destinations(std::uint32_t key, std::vector<int>& out) const {
   out.clear();
   const std::uint64_t c = order_->key_coords()[key];

@@ -29,6 +29,7 @@ class CellLinkedList {
   PairCounts for_each_pair(const ParticleGrid& pg, ParticleSet& ps, std::vector<Op>& ops, double support2,
                            const PairLoopOptions& options = {}) {
     counts_.assign(ops.size(), PairCounts{});
+    sweep_.set_split(options.split);
     if (options.skip_boundary_pairs && options.loop != PairLoopKind::gather)
       throw std::logic_error("skip_boundary_pairs needs the gather loop (pair_loop=gather)");
     if (options.loop == PairLoopKind::direct) {

@@ -5,7 +5,10 @@
 // list evaluates pairs from it; Verlet lists build their lists from it.
 // Threads take contiguous ranges of home cells holding equal shares of the
 // fluid (split_keys: a static split of the key range would hand one thread the
-// water and the other the empty upper half of the tank); each accumulates into
+// water and the other the empty upper half of the tank), or with
+// ThreadSplit::interactions equal shares of the estimated pair work
+// (cell_work.hpp: the cells of the water over the floor bring more pairs per
+// fluid particle than the walls and the splashes); each accumulates into
 // private arrays that are summed afterwards in a fixed order, so results are
 // deterministic for a fixed thread count. With `thread_updates=phased`
 // (ThreadPhases) there are no private arrays: the home cells run in phases in
@@ -30,6 +33,7 @@
 #include "sphnl/grid.hpp"
 #include "sphnl/gridders/gridder.hpp"
 #include "sphnl/neighbours/cell_buffer.hpp"
+#include "sphnl/neighbours/cell_work.hpp"
 #include "sphnl/neighbours/pair_filter.hpp"
 #include "sphnl/neighbours/stencil.hpp"
 #include "sphnl/neighbours/thread_accumulators.hpp"
@@ -144,6 +148,11 @@ class CellSweep {
           });
   }
 
+  /// How the next sweeps cut the home cells between threads (the cell-linked
+  /// list sets it from its options each pass; a Verlet list's build keeps the
+  /// default, its loop has a split of its own).
+  void set_split(ThreadSplit split) { split_ = split; }
+
   std::size_t bytes() const;
 
  private:
@@ -168,7 +177,7 @@ class CellSweep {
     const unsigned outputs = mask & (fields::force_out | fields::kgc_m_out);
     const bool phased = updates == ThreadUpdates::phased && threads > 1 && outputs != 0;
     prepare(gridder, ps, mask, threads, gather, /*private_outputs=*/!phased);
-    split_keys(order, gridder, ps, threads);
+    split_keys(grid, order, gridder, ps, threads);
     const std::uint64_t* coords = order.key_coords().data();
     if (phased) {
       phases_.plan(grid, order, thread_begin_, weight_, threads);
@@ -201,9 +210,12 @@ class CellSweep {
   void prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads, bool gather,
                bool private_outputs);
   /// Fills thread_begin_: thread t sweeps keys [thread_begin_[t], thread_begin_[t+1]).
-  void split_keys(const CellOrder& order, const Gridder& gridder, const ParticleSet& ps, int threads);
+  void split_keys(const CellGrid& grid, const CellOrder& order, const Gridder& gridder, const ParticleSet& ps,
+                  int threads);
+  ThreadSplit split_ = ThreadSplit::fluid;
   std::vector<std::uint32_t> thread_begin_;
   std::vector<double> weight_;
+  std::vector<double> fluid_, boundary_;  // ThreadSplit::interactions: particles per key
   void reduce(ParticleSet& ps, unsigned outputs, int threads);
   std::vector<Scratch> scratch_;
   ThreadPhases phases_;

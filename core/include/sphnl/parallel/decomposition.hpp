@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "sphnl/grid.hpp"
+#include "sphnl/neighbours/cell_work.hpp"
 #include "sphnl/orderings/cell_order.hpp"
 
 namespace sphnl {
@@ -42,22 +43,6 @@ class KeyPartition {
 /// Largest rank weight over the mean, minus one (0: perfectly balanced; 0 when
 /// there is no weight at all).
 double imbalance(std::span<const double> rank_weights);
-
-/// Estimated pair work of each key in [key_begin, key_end), the weights that
-/// balance ranks by interactions (BalanceBy::interactions). With cells of side
-/// >= the interaction radius a cell's particles meet those of the 27 cells
-/// around it (itself included), and every such candidate pair costs a
-/// distance test and, inside the radius, the pair kernel; boundary-boundary
-/// pairs never reach the kernel, so
-///   w_k = f_k (F_k + B_k) + b_k F_k,
-/// f_k and b_k the fluid and boundary particles of cell k, F_k and B_k those
-/// of its stencil (wrapped across a periodic y seam). A pair counts in both of
-/// its cells, as a pair across a rank boundary is computed on both sides.
-/// `fluid` and `boundary` hold the counts per key; every out[k] of the range
-/// is written, the others are left as they are.
-void interaction_weights(const CellGrid& grid, const CellOrder& order, std::span<const double> fluid,
-                         std::span<const double> boundary, std::uint32_t key_begin, std::uint32_t key_end,
-                         std::span<double> out);
 
 /// Which cells each rank needs from the others: with cells of side >= the
 /// interaction radius (2h for the cell-linked list, 2H for Verlet lists), every
