@@ -34,17 +34,22 @@ void ParticleSet::clear_accumulators() {
 }
 
 void ParticleSet::permute(std::span<const std::uint32_t> order, std::vector<double>& scratch,
-                          std::vector<std::uint32_t>& scratch_u32) {
-  const std::size_t n = order.size();
+                          std::vector<std::uint32_t>& scratch_u32, int threads) {
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(order.size());
   for_each_f64_state(*this, [&](std::vector<double>& v) {
-    gather_by<double>(v, order, scratch);
+    gather_by<double>(v, order, scratch, threads);
     v.swap(scratch);
   });
-  gather_by<std::uint32_t>(id, order, scratch_u32);
+  gather_by<std::uint32_t>(id, order, scratch_u32, threads);
   id.swap(scratch_u32);
   // type is one byte per particle: permute through the u32 scratch
-  for (std::size_t k = 0; k < n; ++k) scratch_u32[k] = static_cast<std::uint32_t>(type[order[k]]);
-  for (std::size_t k = 0; k < n; ++k) type[k] = static_cast<ParticleType>(scratch_u32[k]);
+#pragma omp parallel num_threads(threads) if (threads > 1)
+  {
+#pragma omp for schedule(static)
+    for (std::ptrdiff_t k = 0; k < n; ++k) scratch_u32[k] = static_cast<std::uint32_t>(type[order[k]]);
+#pragma omp for schedule(static)
+    for (std::ptrdiff_t k = 0; k < n; ++k) type[k] = static_cast<ParticleType>(scratch_u32[k]);
+  }
 }
 
 std::size_t ParticleSet::bytes() const {

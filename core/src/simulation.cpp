@@ -1,5 +1,7 @@
 #include "sphnl/simulation.hpp"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -108,8 +110,10 @@ void Simulation::init(Communicator* comm) {
 }
 
 std::unique_ptr<ParticleGrid> Simulation::make_particle_grid() const {
-  return std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, gridder_options(),
-                                        case_.period_y);
+  auto grid = std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, gridder_options(),
+                                             case_.period_y);
+  grid->set_threads(config_.threads);
+  return grid;
 }
 
 GridderOptions Simulation::gridder_options() const {
@@ -224,8 +228,11 @@ void Simulation::shuffle_memory_order() {
   // eq. 7: dt = CFL min(dt_f, dt_cv). dt_cv uses the largest sound speed and
   // the largest |h v.r/(r^2+eta^2)| over all pairs (as SPHysics codes it).
   double max_f2 = 0, max_c = 0;
-  const std::size_t n = owned();
-  for (std::size_t i = 0; i < n; ++i) {
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(owned());
+  const int threads = config_.threads;
+  // Maxima: the same for any split over threads.
+#pragma omp parallel for num_threads(threads) schedule(static) reduction(max : max_f2, max_c) if (threads > 1)
+  for (std::ptrdiff_t i = 0; i < n; ++i) {
     if (ps_.type[i] == ParticleType::out) continue;
     max_c = std::max(max_c, ps_.sound_speed[i]);
     if (ps_.type[i] != ParticleType::fluid) continue;
@@ -253,6 +260,11 @@ void Simulation::shuffle_memory_order() {
   const Box& dom = case_.domain;
   double vmax2 = 0;
   std::size_t newly_lost = 0;
+  const int threads = config_.threads;
+  // Every particle is integrated on its own and the reductions are a maximum
+  // and a count, so any split over threads gives the same bits.
+#pragma omp parallel for num_threads(threads) schedule(static) reduction(max : vmax2) reduction(+ : newly_lost) \
+    if (threads > 1)
   for (std::size_t i = 0; i < n; ++i) {
     const ParticleType t = ps_.type[i];
     if (t == ParticleType::out) continue;
@@ -295,7 +307,11 @@ void Simulation::shuffle_memory_order() {
   }
   lost_ += newly_lost;
   max_speed_ = std::sqrt(vmax2);
-  update_derived(phys_, ps_, 0, n);
+#pragma omp parallel num_threads(threads) if (threads > 1)
+  {
+    const std::size_t t = static_cast<std::size_t>(omp_get_thread_num()), team = static_cast<std::size_t>(omp_get_num_threads());
+    update_derived(phys_, ps_, n * t / team, n * (t + 1) / team);
+  }
   const double limit = config_.max_lost_fraction * static_cast<double>(case_.n_fluid);
   if (static_cast<double>(lost_) > limit)
     throw std::runtime_error("simulation stopped at t = " + std::to_string(time_) + " s: " + std::to_string(lost_) +

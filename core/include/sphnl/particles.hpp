@@ -46,9 +46,10 @@ struct ParticleSet {
   /// Clears the pair-loop accumulators (dv/dt, drho/dt, XSPH).
   void clear_accumulators();
   /// Applies `order` (new index -> old index) to every state array; `scratch`
-  /// is reused between calls so that reordering does not allocate.
+  /// is reused between calls so that reordering does not allocate. `threads`
+  /// split each array's copy (the same bits for any count).
   void permute(std::span<const std::uint32_t> order, std::vector<double>& scratch,
-               std::vector<std::uint32_t>& scratch_u32);
+               std::vector<std::uint32_t>& scratch_u32, int threads = 1);
   /// Bytes allocated by the particle arrays (capacity x element size).
   std::size_t bytes() const;
   std::size_t count(ParticleType t) const;

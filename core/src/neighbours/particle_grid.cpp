@@ -14,11 +14,11 @@ bool ParticleGrid::build(ParticleSet& ps, double cell_size, bool reorder, std::s
   request.period_y = period_y_;
   ghost_begin_ = owned < ps.size() ? static_cast<std::uint32_t>(owned) : ~std::uint32_t{0};
   fit_grid(request, grid_, *order_);
-  sort_.place(grid_, *order_, *gridder_, ps.x, ps.y, ps.z, ps.type.data());
+  sort_.place(grid_, *order_, *gridder_, ps.x, ps.y, ps.z, ps.type.data(), threads_);
   if (!reorder) return false;
 
   sort_.sort(*gridder_, owned);  // a distributed run: owned particles first, ghosts last
-  ps.permute(sort_.permutation(), f64_scratch_, u32_scratch_);
+  ps.permute(sort_.permutation(), f64_scratch_, u32_scratch_, threads_);
   sort_.permute_keys();
   gridder_->renumber(sort_.inverse_permutation());
   return true;

@@ -31,6 +31,10 @@ class ParticleGrid {
   /// (owned in cell order, owned out ones, then ghosts in cell order), so that
   /// the integrator's particles stay [0, owned).
   bool build(ParticleSet& ps, double cell_size, bool reorder, std::size_t owned = kAllOwned);
+  /// Threads of the next builds: the cell keys of the particles and the
+  /// permutation of their arrays are split over them (the same keys, order
+  /// and bits for any count); the gridder's counting sort stays serial.
+  void set_threads(int threads) { threads_ = threads < 1 ? 1 : threads; }
   static constexpr std::size_t kAllOwned = ~std::size_t{0};
   /// First ghost index of the last build ([ghost_begin, size) are ghosts, in
   /// cells of other ranks), or CellSweep::kNoGhosts for a serial run: the
@@ -50,6 +54,7 @@ class ParticleGrid {
  private:
   Box domain_;
   double period_y_ = 0;
+  int threads_ = 1;
   std::uint32_t ghost_begin_ = ~std::uint32_t{0};
   CellGrid grid_;
   std::unique_ptr<CellOrder> order_;
