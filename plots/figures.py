@@ -408,7 +408,58 @@ def peers(data, out):
           "(geometric mean over lattice/random clouds, generated/shuffled order)", N_LABEL, panels)
     n, text = _at_end(panels[0][1], " /s", best="max")
     return (f"At N = {_fmt_n(n)}, list entries per second of a {calls[0]} call from fastest "
-            f"[95 % interval]: {text}.")
+            f"[95 % interval]: {text}.\n\n" + _peer_table(med))
+
+
+PEER_KEYS = ("cloud", "memory_order", "call")
+
+
+def _peer_ratios(tab, n):
+    """{(cloud, order, call, threads): sphnl / nanoflann entries per second} and
+    {(impl, cloud, order, call): 2-thread over 1-thread entries per second} at N = n."""
+    m = tab[tab["particles"] == n].set_index(["impl", *PEER_KEYS, "threads"])["entries_per_s"]
+    ratio, speedup = {}, {}
+    for key in m.index:
+        impl, rest, th = key[0], key[1:-1], key[-1]
+        if impl == "sphnl" and ("nanoflann", *rest, th) in m.index:
+            ratio[(*rest, th)] = m[key] / m[("nanoflann", *rest, th)]
+        if th == 2 and (impl, *rest, 1) in m.index:
+            speedup[(impl, *rest)] = m[key] / m[(impl, *rest, 1)]
+    return ratio, speedup
+
+
+def _peer_table(med):
+    """Markdown: every configuration at the largest N, sphnl over nanoflann and
+    each implementation's 2-thread speed-up, each with its interval."""
+    n = int(med.point["particles"].max())
+    ratio, speedup = _peer_ratios(med.point, n)
+    reps_r, reps_s = {k: [] for k in ratio}, {k: [] for k in speedup}
+    for tab in med.boot.tables():
+        r, s = _peer_ratios(tab, n)
+        for k in reps_r:
+            if k in r:
+                reps_r[k].append(r[k])
+        for k in reps_s:
+            if k in s:
+                reps_s[k].append(s[k])
+
+    def cell(value, reps):
+        if len(reps) < 2:
+            return f"{value:.3g}"
+        lo, hi = S.percentile_interval(np.asarray(reps), med.boot.level)
+        return f"{value:.3g} [{lo:.3g}, {hi:.3g}]"
+    threads = sorted({k[-1] for k in ratio})
+    rows = sorted({k[:-1] for k in ratio} | {k[1:] for k in speedup})
+    head = (["cloud", "memory order", "call"] + [f"sphnl / nanoflann, {t} thr." for t in threads]
+            + [f"{impl} 2 thr. / 1" for impl in IMPLS])
+    lines = [f"Every configuration at N = {_fmt_n(n)} (entries per second; medians [95 % interval]):", "",
+             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for row in rows:
+        cells = [cell(ratio[(*row, t)], reps_r[(*row, t)]) if (*row, t) in ratio else "–" for t in threads]
+        cells += [cell(speedup[(impl, *row)], reps_s[(impl, *row)]) if (impl, *row) in speedup else "–"
+                  for impl in IMPLS]
+        lines.append("| " + " | ".join([*row, *cells]) + " |")
+    return "\n".join(lines)
 
 
 # ------------------------------------------------------ counters (valgrind)

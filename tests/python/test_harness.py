@@ -7,15 +7,20 @@ plots/report.py, driven by tests/python/fake_bench.py instead of sphnl_bench.
 import collections
 import contextlib
 import io
+import itertools
 import json
 import math
 import os
 import pathlib
+import re
 import shutil
 import subprocess
 import sys
 import tempfile
 import unittest
+
+import numpy as np
+import pandas as pd
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
 os.environ.setdefault("MPLBACKEND", "Agg")
@@ -392,7 +397,6 @@ class TestProtocolRules(unittest.TestCase):
     def test_bootstrap_halfwidth(self):
         self.assertEqual(P.median_halfwidth_pct([[2.0] * 3] * 3), 0.0)
         self.assertEqual(P.median_halfwidth_pct([[1.0]]), math.inf)
-        import numpy as np
         rng = np.random.default_rng(3)
         narrow = P.median_halfwidth_pct([1 + 0.001 * rng.standard_normal(9)])
         wide = P.median_halfwidth_pct([1 + 0.05 * rng.standard_normal(9)])
@@ -619,6 +623,34 @@ class TestFiguresAndReport(TempDirCase):
         self.assertIn("| Neighbour List | 1.7 %", md)
         self.assertIn("VL step", sentence)
 
+    def test_peer_table_reads_every_configuration_with_its_interval(self):
+        # Synthetic peers rows with known answers: sphnl lists 25x as fast as
+        # nanoflann on one thread and gains 1.5x from a second; nanoflann none.
+        rng = np.random.default_rng(1)
+        rows = []
+        for rnd, rep, impl, th, cloud, order, call in itertools.product(
+                range(3), range(3), ("sphnl", "nanoflann"), (1, 2), ("lattice", "random"),
+                ("generated", "shuffled"), ("warm", "first")):
+            eps = (100.0 if impl == "sphnl" else 4.0) * (1.5 if impl == "sphnl" and th == 2 else 1.0)
+            eps *= 1 + 0.01 * rng.standard_normal()
+            rows.append(dict(experiment="peers", family="search", particles=1000, threads=th, impl=impl,
+                             cloud=cloud, memory_order=order, call=call, entries_per_s=eps,
+                             run_name=f"search/particles:1000/threads:{th}/impl:{impl}/cloud:{cloud}"
+                                      f"/memory_order:{order}/call:{call}",
+                             repetition_index=rep, round=rnd, error_occurred=False))
+        table = F._peer_table(F._med(pd.DataFrame(rows), family="search")).splitlines()
+        body = [line for line in table if line.startswith(("| lattice", "| random"))]
+        self.assertEqual(len(body), 8)
+        for line in body:
+            cells = re.findall(r"([\d.]+) \[([\d.]+), ([\d.]+)\]", line)
+            self.assertEqual(len(cells), 4, line)
+            for (value, lo, hi), want in zip(cells, (25.0, 37.5, 1.5, 1.0)):
+                value, lo, hi = float(value), float(lo), float(hi)
+                self.assertLess(abs(value / want - 1), 0.03, line)
+                self.assertLessEqual(lo, value)
+                self.assertLessEqual(value, hi)
+                self.assertLess(hi / lo, 1.1, line)
+
     def test_missing_data_is_reported_not_raised(self):
         with self.assertRaises(F.NoData):
             F.fig08(self.df[self.df["experiment"] == "fig06"], self.tmp)  # no reordered runs
@@ -662,7 +694,6 @@ class TestFiguresAndReport(TempDirCase):
 
 def synthetic(rows):
     """A results DataFrame as load_run makes it, from (params, counters) pairs."""
-    import pandas as pd
     out = []
     for params, ctr in rows:
         full = {"experiment": "x", "family": "step", "cell_order": "sort_x", "list": "cll", "list_steps": 1,
@@ -763,7 +794,6 @@ class TestClaims(unittest.TestCase):
     def test_peer_ratio_pairs_configurations_and_takes_their_geometric_mean(self):
         """sphnl_over_nanoflann: sphnl's entries per second over nanoflann's,
         configuration by configuration, at the largest N; 8x and 2x give 4x."""
-        import pandas as pd
         rows = []
         for rep in range(3):
             for impl, base in (("sphnl", 8e8), ("nanoflann", 1e8)):
@@ -787,7 +817,6 @@ class TestClaims(unittest.TestCase):
         """search_api's claims: the API's seconds per call over the engine's
         (one thread), and the engine's speed-up from one thread to two, read
         from s_call at N = 1 000 000."""
-        import pandas as pd
         seconds = {("sphnl", 1): 0.20, ("sphnl", 2): 0.11, ("api_visit", 1): 0.204, ("api_visit", 2): 0.114,
                    ("api", 1): 0.60, ("api", 2): 0.34}
         rows = []
