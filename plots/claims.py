@@ -645,6 +645,36 @@ def interactions_split_over_fluid(med, c):
         note.replace("(paper: ", "(claim read at ") + ", CLL, two threads, thread_updates=phased", related
 
 
+@claim("step_two_threads_dynamic")
+def step_two_threads_dynamic(med, c):
+    """Seconds per step on one thread over two, CLL, home cells handed out
+    dynamically, private updates; related, the force phase's speed-up and
+    the split by interactions."""
+    n, note = _at(med, c)
+    one = _split_row(med, n, 1, "dynamic", "private")
+    two = _split_row(med, n, 2, "dynamic", "private")
+    related = {"force_phase": float(one["s_force"]) / float(two["s_force"])}
+    try:
+        related["interactions_private"] = float(_split_row(med, n, 1, "interactions", "private")["t"]) / \
+            float(_split_row(med, n, 2, "interactions", "private")["t"])
+    except NotMeasured:
+        pass
+    return float(one["t"]) / float(two["t"]), note.replace("(paper: ", "(claim read at ") + \
+        ", CLL, thread_split=dynamic, thread_updates=private", related
+
+
+@claim("dynamic_split_over_interactions")
+def dynamic_split_over_interactions(med, c):
+    """Seconds per step on two threads split by interactions over handed out
+    dynamically, CLL, private updates; related, the same of the force phase."""
+    n, note = _at(med, c)
+    cut = _split_row(med, n, 2, "interactions", "private")
+    dyn = _split_row(med, n, 2, "dynamic", "private")
+    related = {"force_phase": float(cut["s_force"]) / float(dyn["s_force"])}
+    return float(cut["t"]) / float(dyn["t"]), note.replace("(paper: ", "(claim read at ") + \
+        ", CLL, two threads, thread_updates=private", related
+
+
 # ------------------------------------------------- beyond the paper: ranks (mpi kind)
 def _on(med, ranks, threads, **equal):
     """Rows of the layout `ranks` x `threads`."""

@@ -21,7 +21,7 @@ constexpr std::array kSlidingNames{"occupied", "shift_all"};
 constexpr std::array kInitialOrderNames{"generated", "shuffled"};
 constexpr std::array kOnOffNames{"on", "off"};
 constexpr std::array kThreadUpdateNames{"private", "phased"};
-constexpr std::array kThreadSplitNames{"fluid", "interactions"};
+constexpr std::array kThreadSplitNames{"fluid", "interactions", "dynamic"};
 constexpr std::array kPrecisionNames{"double", "mixed"};
 constexpr std::array kBalanceNames{"interactions", "particles"};
 constexpr std::array kSnapshotPiecesNames{"gathered", "per_rank"};

@@ -33,7 +33,7 @@ const char* to_string(ThreadUpdates u) {
   return names[static_cast<int>(u)];
 }
 const char* to_string(ThreadSplit s) {
-  constexpr const char* names[] = {"fluid", "interactions"};
+  constexpr const char* names[] = {"fluid", "interactions", "dynamic"};
   return names[static_cast<int>(s)];
 }
 const char* to_string(Precision p) {

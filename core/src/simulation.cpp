@@ -81,6 +81,9 @@ void Simulation::init(Communicator* comm) {
   if (config_.pair_loop == PairLoopKind::direct && case_.period_y > 0)
     throw ConfigError("pair_loop = direct: this case has a periodic y, whose image shift needs the gathered "
                       "copies of the cells; use pair_loop = gather");
+  if (config_.thread_split == ThreadSplit::dynamic && config_.thread_updates == ThreadUpdates::phased)
+    throw ConfigError("thread_split = dynamic needs thread_updates = private (the phases of phased updates are "
+                      "planned on fixed key ranges per thread); use thread_split = interactions with phased updates");
   if (config_.precision == Precision::mixed && !config_.simd)
     throw ConfigError("precision = mixed has only the vectorised pair kernel (simd = off is an ablation of the "
                       "double kernel); use simd = on, or precision = double");

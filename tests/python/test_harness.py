@@ -867,6 +867,26 @@ class TestClaims(unittest.TestCase):
                               {"s_per_step": 0.1}) for t in (1, 2)])
         self.assertEqual(C.evaluate(self.claim("step_two_threads_over_one"), no_axis)["verdict"], "not measured")
 
+    def test_dynamic_split_claims(self):
+        """beyond_dynamic's claims: one thread over two handed out dynamically;
+        the split by interactions over dynamic on two threads."""
+        rows = []
+        for split, t2, f2 in (("interactions", 0.060, 0.050), ("dynamic", 0.054, 0.045)):
+            base = {"particles": 118853, "gridder": "B", "reorder": 1, "lattice": "cubic", "h_coefficient": 1.0,
+                    "thread_split": split, "thread_updates": "private"}
+            rows.append(({**base, "threads": 1}, {"s_per_step": 0.1, "s_force": 0.09}))
+            rows.append(({**base, "threads": 2}, {"s_per_step": t2, "s_force": f2}))
+        data = synthetic(rows)
+        r = C.evaluate(self.claim("step_two_threads_dynamic"), data)
+        self.assertAlmostEqual(r["value"], 0.1 / 0.054, places=6)
+        self.assertEqual(r["verdict"], "partly", r)
+        self.assertAlmostEqual(r["related"]["force_phase"]["value"], 2.0, places=6)
+        self.assertAlmostEqual(r["related"]["interactions_private"]["value"], 0.1 / 0.060, places=6)
+        r = C.evaluate(self.claim("dynamic_split_over_interactions"), data)
+        self.assertAlmostEqual(r["value"], 0.060 / 0.054, places=6)
+        self.assertEqual(r["verdict"], "reproduced", r)
+        self.assertAlmostEqual(r["related"]["force_phase"]["value"], 0.050 / 0.045, places=6)
+
     def test_regression_flips_a_claim_end_to_end(self):
         """fake_bench --fake-regress: slowing VL_X turns its gain into a loss."""
         with tempfile.TemporaryDirectory() as tmp:

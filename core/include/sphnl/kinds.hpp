@@ -40,8 +40,12 @@ enum class ThreadUpdates : std::uint8_t { private_accumulators, phased };
 /// particle 1, a boundary one 1/4); or `interactions`, equal estimated pair
 /// work (sweep_pair_work in neighbours/cell_work.hpp: the candidate pairs
 /// with a fluid particle that each home cell meets in itself and its 13
-/// forward cells).
-enum class ThreadSplit : std::uint8_t { fluid, interactions };
+/// forward cells); or `dynamic`, no cut: the threads take chunks of
+/// consecutive home cells as they finish the last (OpenMP dynamic schedule),
+/// which balances whatever a cell costs, but makes which thread sums which
+/// pair, and so the last bits of the results, vary between runs. Only with
+/// `thread_updates=private` (phased updates need fixed key ranges).
+enum class ThreadSplit : std::uint8_t { fluid, interactions, dynamic };
 
 /// Arithmetic of the pair kernel (config `precision`): `double` throughout
 /// (config value `double`), or `mixed`: differences of positions and

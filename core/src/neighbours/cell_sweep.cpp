@@ -24,7 +24,7 @@ void CellSweep::prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, 
 void CellSweep::split_keys(const CellGrid& grid, const CellOrder& order, const Gridder& gridder,
                            const ParticleSet& ps, int threads) {
   const std::uint32_t num_keys = order.num_keys();
-  if (threads == 1) {
+  if (threads == 1 || split_ == ThreadSplit::dynamic) {  // dynamic: no cut, the threads take chunks
     thread_begin_.assign({0, num_keys});
     return;
   }

@@ -10,7 +10,9 @@
 // (cell_work.hpp: the cells of the water over the floor bring more pairs per
 // fluid particle than the walls and the splashes); each accumulates into
 // private arrays that are summed afterwards in a fixed order, so results are
-// deterministic for a fixed thread count. With `thread_updates=phased`
+// deterministic for a fixed thread count. ThreadSplit::dynamic cuts nothing:
+// the threads take chunks of keys as they finish, balanced whatever a cell
+// costs, at the price of bits that vary between runs. With `thread_updates=phased`
 // (ThreadPhases) there are no private arrays: the home cells run in phases in
 // which no two threads write one particle.
 // With a periodic y (CellGrid::period_y) the stencil wraps across the seam and
@@ -180,6 +182,8 @@ class CellSweep {
     split_keys(grid, order, gridder, ps, threads);
     const std::uint64_t* coords = order.key_coords().data();
     if (phased) {
+      if (split_ == ThreadSplit::dynamic)
+        throw std::logic_error("CellSweep: thread_split=dynamic with thread_updates=phased (phases need fixed key ranges)");
       phases_.plan(grid, order, thread_begin_, weight_, threads);
 #pragma omp parallel num_threads(threads)
       {
@@ -194,13 +198,29 @@ class CellSweep {
       }
       return;
     }
+    if (split_ == ThreadSplit::dynamic && threads > 1) {
+      // Chunks of consecutive keys keep a thread's cells near each other in
+      // memory; a chunk costs one atomic fetch.
+      const std::int64_t num_keys = static_cast<std::int64_t>(order.num_keys());
 #pragma omp parallel num_threads(threads)
-    {
-      const int t = omp_get_thread_num();
-      Scratch& s = scratch_[t];
-      for (std::uint32_t key = thread_begin_[t]; key < thread_begin_[t + 1]; ++key) {
-        const std::uint64_t c = coords[key];
-        if (c != CellOrder::kNoCellCoords) home(t, s, key, CellOrder::unpack_coords(c));
+      {
+        const int t = omp_get_thread_num();
+        Scratch& s = scratch_[t];
+#pragma omp for schedule(dynamic, kDynamicChunk)
+        for (std::int64_t key = 0; key < num_keys; ++key) {
+          const std::uint64_t c = coords[key];
+          if (c != CellOrder::kNoCellCoords) home(t, s, static_cast<std::uint32_t>(key), CellOrder::unpack_coords(c));
+        }
+      }
+    } else {
+#pragma omp parallel num_threads(threads)
+      {
+        const int t = omp_get_thread_num();
+        Scratch& s = scratch_[t];
+        for (std::uint32_t key = thread_begin_[t]; key < thread_begin_[t + 1]; ++key) {
+          const std::uint64_t c = coords[key];
+          if (c != CellOrder::kNoCellCoords) home(t, s, key, CellOrder::unpack_coords(c));
+        }
       }
     }
     if (outputs) reduce(ps, outputs, threads);
@@ -212,6 +232,9 @@ class CellSweep {
   /// Fills thread_begin_: thread t sweeps keys [thread_begin_[t], thread_begin_[t+1]).
   void split_keys(const CellGrid& grid, const CellOrder& order, const Gridder& gridder, const ParticleSet& ps,
                   int threads);
+  /// Keys per chunk of ThreadSplit::dynamic: a run of consecutive keys (empty
+  /// cells included), neighbouring cells in memory, for one atomic fetch.
+  static constexpr int kDynamicChunk = 64;
   ThreadSplit split_ = ThreadSplit::fluid;
   std::vector<std::uint32_t> thread_begin_;
   std::vector<double> weight_;
