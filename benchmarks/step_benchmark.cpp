@@ -86,6 +86,13 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
   c["interactions_per_particle"] = 2.0 * static_cast<double>(s.interactions) / steps / n;
   c["pairs_per_s"] = static_cast<double>(s.interactions) / t.force;
   c["kernel_lanes_per_pair"] = s.kernel_lanes_per_pair();
+  // Where two threads lose (docs/PERFORMANCE.md): the main pair loop's
+  // region, the threads' busy seconds in it, the serial reduction after it.
+  c["s_force_region"] = s.pair_region_seconds / steps;
+  c["s_force_threads_busy"] = s.pair_busy_seconds / steps;
+  c["s_force_reduce"] = s.pair_reduce_seconds / steps;
+  c["force_busy_fraction"] =
+      s.pair_region_seconds > 0 ? s.pair_busy_seconds / (cfg.threads * s.pair_region_seconds) : 0.0;
   // The force phase on the roofline (docs/PERFORMANCE.md): pairs x flops per
   // pair as the kernels' source counts them, against threads x this core's
   // FMA peak. Not in the counters family (time means nothing under valgrind).

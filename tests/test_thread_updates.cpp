@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "sphnl/neighbours/cell_linked_list.hpp"
+#include "sphnl/pair_kernel.hpp"
 #include "sphnl/neighbours/cell_work.hpp"
 #include "sphnl/neighbours/particle_grid.hpp"
 #include "sphnl/neighbours/stencil.hpp"
@@ -371,4 +372,37 @@ TEST(ThreadSplit, DynamicWithPhasedUpdatesIsRefusedNamingTheFix) {
     EXPECT_NE(std::string(e.what()).find("thread_split = dynamic needs thread_updates = private"), std::string::npos)
         << e.what();
   }
+}
+
+// The pass's timing (PairCounts' busy, region and reduce seconds): each
+// thread's time in its pair loops lies inside the parallel region, so their
+// sum is at most threads x the region; the serial reduction runs only for
+// private accumulators on more than one thread. Structural, not a speed.
+TEST(ThreadTiming, BusySecondsFitInTheRegion) {
+  RunConfig c = small_dam_break_config(20000);
+  Simulation sim(c);
+  for (int k = 0; k < 20; ++k) sim.step();
+  ParticleSet ps = sim.particles();
+  const double support2 = sim.physics().kernel.support2;
+  ParticleGrid pg(sim.case_info().domain, CellOrderKind::sort_x, GridderKind::B, {});
+  pg.build(ps, std::sqrt(support2), true);
+  CellLinkedList cll;
+  for (int threads : {1, 2})
+    for (ThreadUpdates updates : {ThreadUpdates::private_accumulators, ThreadUpdates::phased})
+      for (ThreadSplit split : {ThreadSplit::fluid, ThreadSplit::dynamic}) {
+        if (split == ThreadSplit::dynamic && updates == ThreadUpdates::phased) continue;
+        const std::string what = std::to_string(threads) + " threads, " + to_string(updates) + ", " + to_string(split);
+        ForceOp<false> op;
+        op.phys = &sim.physics();
+        std::vector<ForceOp<false>> ops(static_cast<std::size_t>(threads), op);
+        PairLoopOptions options;
+        options.updates = updates;
+        options.split = split;
+        const PairCounts counts = cll.for_each_pair(pg, ps, ops, support2, options);
+        EXPECT_GT(counts.busy_seconds, 0) << what;
+        EXPECT_GT(counts.region_seconds, 0) << what;
+        EXPECT_LE(counts.busy_seconds, threads * counts.region_seconds * (1 + 1e-9)) << what;
+        if (threads == 1 || updates == ThreadUpdates::phased) EXPECT_EQ(counts.reduce_seconds, 0) << what;
+        else EXPECT_GT(counts.reduce_seconds, 0) << what;
+      }
 }

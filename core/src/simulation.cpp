@@ -190,6 +190,9 @@ void Simulation::compute_forces_with(std::vector<ForcePlain>& force_ops, std::ve
   stats_.candidates += counts.candidates;
   stats_.interactions += counts.interactions;
   stats_.idle_lanes += counts.idle_lanes;
+  stats_.pair_busy_seconds += counts.busy_seconds;
+  stats_.pair_region_seconds += counts.region_seconds;
+  stats_.pair_reduce_seconds += counts.reduce_seconds;
   // extra_loops (README.md, "Ablations"): more passes over the same pairs
   // doing real work whose result is kept but not applied, after the main loop
   // so that L_a of KGC is already in use and the physics is unchanged.

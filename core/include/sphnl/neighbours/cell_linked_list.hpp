@@ -47,6 +47,9 @@ class CellLinkedList {
     }
     PairCounts sum;
     for (const auto& c : counts_) sum += c;
+    sum.busy_seconds = sweep_.busy_seconds();
+    sum.region_seconds = sweep_.region_seconds();
+    sum.reduce_seconds = sweep_.reduce_seconds();
     return sum;
   }
 

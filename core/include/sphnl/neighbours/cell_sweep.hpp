@@ -67,6 +67,8 @@ class CellSweep {
     /// cell's later entries: 0, or n_home for a ghost home cell (its
     /// particles are ghosts: not paired with each other).
     std::uint32_t first_partner = 0;
+    /// Seconds this thread spent in its home cells in the last sweep.
+    double busy_seconds = 0;
   };
 
   /// ghost_begin of a run without ghosts.
@@ -154,6 +156,10 @@ class CellSweep {
   /// list sets it from its options each pass; a Verlet list's build keeps the
   /// default, its loop has a split of its own).
   void set_split(ThreadSplit split) { split_ = split; }
+  /// The timing of the last sweep (PairCounts' busy, region and reduce seconds).
+  double busy_seconds() const { return busy_seconds_; }
+  double region_seconds() const { return region_seconds_; }
+  double reduce_seconds() const { return reduce_seconds_; }
 
   std::size_t bytes() const;
 
@@ -181,23 +187,33 @@ class CellSweep {
     prepare(gridder, ps, mask, threads, gather, /*private_outputs=*/!phased);
     split_keys(grid, order, gridder, ps, threads);
     const std::uint64_t* coords = order.key_coords().data();
+    reduce_seconds_ = 0;
     if (phased) {
       if (split_ == ThreadSplit::dynamic)
         throw std::logic_error("CellSweep: thread_split=dynamic with thread_updates=phased (phases need fixed key ranges)");
       phases_.plan(grid, order, thread_begin_, weight_, threads);
+      const double region_start = omp_get_wtime();
 #pragma omp parallel num_threads(threads)
       {
         const int t = omp_get_thread_num();
         Scratch& s = scratch_[t];
+        s.busy_seconds = 0;
         for (int p = 0; p < ThreadPhases::kParallelPhases; ++p) {
+          const double start = omp_get_wtime();
           for (const std::uint32_t key : phases_.keys(p, t)) home(t, s, key, CellOrder::unpack_coords(coords[key]));
+          s.busy_seconds += omp_get_wtime() - start;
 #pragma omp barrier
         }
-        if (t == 0)
+        if (t == 0) {
+          const double start = omp_get_wtime();
           for (const std::uint32_t key : phases_.serial()) home(t, s, key, CellOrder::unpack_coords(coords[key]));
+          s.busy_seconds += omp_get_wtime() - start;
+        }
       }
+      finish_timing(region_start, threads);
       return;
     }
+    const double region_start = omp_get_wtime();
     if (split_ == ThreadSplit::dynamic && threads > 1) {
       // Chunks of consecutive keys keep a thread's cells near each other in
       // memory; a chunk costs one atomic fetch.
@@ -206,25 +222,35 @@ class CellSweep {
       {
         const int t = omp_get_thread_num();
         Scratch& s = scratch_[t];
-#pragma omp for schedule(dynamic, kDynamicChunk)
+        const double start = omp_get_wtime();
+#pragma omp for schedule(dynamic, kDynamicChunk) nowait
         for (std::int64_t key = 0; key < num_keys; ++key) {
           const std::uint64_t c = coords[key];
           if (c != CellOrder::kNoCellCoords) home(t, s, static_cast<std::uint32_t>(key), CellOrder::unpack_coords(c));
         }
+        s.busy_seconds = omp_get_wtime() - start;
       }
     } else {
 #pragma omp parallel num_threads(threads)
       {
         const int t = omp_get_thread_num();
         Scratch& s = scratch_[t];
+        const double start = omp_get_wtime();
         for (std::uint32_t key = thread_begin_[t]; key < thread_begin_[t + 1]; ++key) {
           const std::uint64_t c = coords[key];
           if (c != CellOrder::kNoCellCoords) home(t, s, key, CellOrder::unpack_coords(c));
         }
+        s.busy_seconds = omp_get_wtime() - start;
       }
     }
-    if (outputs) reduce(ps, outputs, threads);
+    finish_timing(region_start, threads);
+    if (outputs && threads > 1) {
+      const double start = omp_get_wtime();
+      reduce(ps, outputs, threads);
+      reduce_seconds_ = omp_get_wtime() - start;
+    }
   }
+
   /// gather = false (run_direct): no CellBuffer is allocated. private_outputs:
   /// threads > 0 write their outputs into private accumulators.
   void prepare(const Gridder& gridder, ParticleSet& ps, unsigned mask, int threads, bool gather,
@@ -235,6 +261,12 @@ class CellSweep {
   /// Keys per chunk of ThreadSplit::dynamic: a run of consecutive keys (empty
   /// cells included), neighbouring cells in memory, for one atomic fetch.
   static constexpr int kDynamicChunk = 64;
+  void finish_timing(double region_start, int threads) {
+    region_seconds_ = omp_get_wtime() - region_start;
+    busy_seconds_ = 0;
+    for (int t = 0; t < threads; ++t) busy_seconds_ += scratch_[static_cast<std::size_t>(t)].busy_seconds;
+  }
+  double busy_seconds_ = 0, region_seconds_ = 0, reduce_seconds_ = 0;
   ThreadSplit split_ = ThreadSplit::fluid;
   std::vector<std::uint32_t> thread_begin_;
   std::vector<double> weight_;

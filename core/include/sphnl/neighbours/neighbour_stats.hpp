@@ -12,6 +12,12 @@ struct NeighbourStats {
   std::uint64_t candidates = 0;      // candidate pairs tested in the main loop
   std::uint64_t interactions = 0;    // pairs evaluated in the main loop
   std::uint64_t idle_lanes = 0;      // pair_loop=masked: kernel lanes evaluated that were not pairs
+  // The main loop's PairCounts timing, summed over steps: the threads' seconds
+  // in their pair loops (summed over threads), the parallel region's wall
+  // seconds, the serial reduction of private accumulators after it.
+  double pair_busy_seconds = 0;
+  double pair_region_seconds = 0;
+  double pair_reduce_seconds = 0;
   std::uint64_t max_steps_per_list = 0;
   // Verlet lists (paper §2.5); all zero for the cell-linked list
   std::uint64_t list_steps = 0;         // steps that used a list (sum of list lifetimes)

@@ -120,12 +120,14 @@ PairCounts VerletList::loop(ParticleSet& ps, std::vector<Op>& ops, double suppor
   const bool phased = outputs != 0 && threads > 1 && phased_threads_ == threads;
   prepare_loop(ps, outputs, threads, phased);
   counts_.assign(threads, PairCounts{});
+  const double region_start = omp_get_wtime();
 #pragma omp parallel num_threads(threads)
   {
     const int t = omp_get_thread_num();
     Scratch& s = scratch_[t];
     std::uint32_t* survivors = s.survivors.data();
     PairCounts c;
+    double start = omp_get_wtime();
     const std::uint32_t* off = offsets_.data();
     const std::uint32_t* nb = neighbours_.data.data();
     auto rows = [&](std::uint32_t begin, std::uint32_t end) {
@@ -142,18 +144,26 @@ PairCounts VerletList::loop(ParticleSet& ps, std::vector<Op>& ops, double suppor
     if (phased) {
       for (int p = 0; p < ThreadPhases::kParallelPhases; ++p) {
         for (const auto& [begin, end] : phase_rows_[static_cast<std::size_t>(p * threads + t)]) rows(begin, end);
+        c.busy_seconds += omp_get_wtime() - start;
 #pragma omp barrier
+        start = omp_get_wtime();
       }
       if (t == 0)
         for (const auto& [begin, end] : serial_rows_) rows(begin, end);
     } else {
       rows(s.begin, s.end);
     }
+    if (!phased || t == 0) c.busy_seconds += omp_get_wtime() - start;
     counts_[t] = c;
   }
-  if (outputs && threads > 1 && !phased) reduce(ps, outputs, threads);
   PairCounts sum;
   for (const auto& c : counts_) sum += c;
+  sum.region_seconds = omp_get_wtime() - region_start;
+  if (outputs && threads > 1 && !phased) {
+    const double start = omp_get_wtime();
+    reduce(ps, outputs, threads);
+    sum.reduce_seconds = omp_get_wtime() - start;
+  }
   return sum;
 }
 
