@@ -607,26 +607,33 @@ def _split_row(med, n, threads, thread_split, thread_updates):
                 thread_updates=thread_updates)
 
 
+def _split_speedup(med, n, thread_split, thread_updates, column="t"):
+    """One thread's `column` over two threads', CLL, at N = n."""
+    return float(_split_row(med, n, 1, thread_split, thread_updates)[column]) / \
+        float(_split_row(med, n, 2, thread_split, thread_updates)[column])
+
+
+def _step_speedup(med, c, thread_split, thread_updates, others):
+    """The step's 2-thread speed-up of one way; related, the force phase's
+    and the speed-ups of the `others` ways that were measured."""
+    n, note = _at(med, c)
+    related = {"force_phase": _split_speedup(med, n, thread_split, thread_updates, "s_force")}
+    for split, updates in others:
+        try:
+            related[f"{split}_{updates}"] = _split_speedup(med, n, split, updates)
+        except NotMeasured:
+            pass
+    return _split_speedup(med, n, thread_split, thread_updates), note.replace("(paper: ", "(claim read at ") + \
+        f", CLL, thread_split={thread_split}, thread_updates={thread_updates}", related
+
+
 @claim("step_two_threads_over_one")
 def step_two_threads_over_one(med, c):
     """Seconds per step on one thread over two, CLL, split by interactions,
     phased updates; related, the other three ways of two threads and the
     force phase's speed-up."""
-    n, note = _at(med, c)
-    one = _split_row(med, n, 1, "interactions", "phased")
-    two = _split_row(med, n, 2, "interactions", "phased")
-    related = {"force_phase": float(one["s_force"]) / float(two["s_force"])}
-    for split in ("fluid", "interactions"):
-        for updates in ("private", "phased"):
-            if (split, updates) == ("interactions", "phased"):
-                continue
-            try:
-                related[f"{split}_{updates}"] = float(_split_row(med, n, 1, split, updates)["t"]) / \
-                    float(_split_row(med, n, 2, split, updates)["t"])
-            except NotMeasured:
-                pass
-    return float(one["t"]) / float(two["t"]), note.replace("(paper: ", "(claim read at ") + \
-        ", CLL, thread_split=interactions, thread_updates=phased", related
+    return _step_speedup(med, c, "interactions", "phased",
+                         [("fluid", "private"), ("fluid", "phased"), ("interactions", "private")])
 
 
 @claim("interactions_split_over_fluid")
@@ -650,17 +657,7 @@ def step_two_threads_dynamic(med, c):
     """Seconds per step on one thread over two, CLL, home cells handed out
     dynamically, private updates; related, the force phase's speed-up and
     the split by interactions."""
-    n, note = _at(med, c)
-    one = _split_row(med, n, 1, "dynamic", "private")
-    two = _split_row(med, n, 2, "dynamic", "private")
-    related = {"force_phase": float(one["s_force"]) / float(two["s_force"])}
-    try:
-        related["interactions_private"] = float(_split_row(med, n, 1, "interactions", "private")["t"]) / \
-            float(_split_row(med, n, 2, "interactions", "private")["t"])
-    except NotMeasured:
-        pass
-    return float(one["t"]) / float(two["t"]), note.replace("(paper: ", "(claim read at ") + \
-        ", CLL, thread_split=dynamic, thread_updates=private", related
+    return _step_speedup(med, c, "dynamic", "private", [("interactions", "private")])
 
 
 @claim("dynamic_split_over_interactions")

@@ -194,13 +194,31 @@ struct CountPairs {
 };
 static_assert(PairOperation<CountPairs>);
 
+/// The small dam break after `steps` steps.
+struct SteppedDamBreak {
+  SteppedDamBreak(std::size_t particles, int steps) : sim(small_dam_break_config(particles)) {
+    for (int k = 0; k < steps; ++k) sim.step();
+  }
+  Simulation sim;
+};
+
+/// A copy of a simulation's particles put into cells (and reordered or not),
+/// with the squared support radius: the input of one pair pass.
+struct Gridded {
+  Gridded(const Simulation& sim, CellOrderKind order, GridderKind gridder, bool reorder)
+      : ps(sim.particles()), support2(sim.physics().kernel.support2), pg(sim.case_info().domain, order, gridder, {}) {
+    pg.build(ps, std::sqrt(support2), reorder);
+  }
+  ParticleSet ps;
+  double support2;
+  ParticleGrid pg;
+};
+
 /// The busiest of two threads' pairs over the mean, minus one, in one
 /// cell-linked-list pass over `ps` split by `split`.
 double pair_imbalance(const Simulation& sim, ThreadSplit split, const std::string& what) {
-  ParticleSet ps = sim.particles();
-  const double support2 = sim.physics().kernel.support2;
-  ParticleGrid pg(sim.case_info().domain, CellOrderKind::sort_x, GridderKind::B, {});
-  pg.build(ps, std::sqrt(support2), true);
+  Gridded g(sim, CellOrderKind::sort_x, GridderKind::B, true);
+  auto& [ps, support2, pg] = g;
   CellLinkedList cll;
   std::vector<CountPairs> ops(2);
   PairLoopOptions options;
@@ -255,13 +273,9 @@ TEST(ThreadSplit, InteractionsReachesTheFluidStateAfter50Steps) {
 // without the boundary-boundary ones: summed over the cells it is exactly the
 // candidates a skip_boundary_pairs pass tests (which leaves those out).
 TEST(ThreadSplit, SweepPairWorkSumsToTheCandidatesTested) {
-  RunConfig c = small_dam_break_config(6000);
-  Simulation sim(c);
-  for (int k = 0; k < 50; ++k) sim.step();
-  ParticleSet ps = sim.particles();
-  const double support2 = sim.physics().kernel.support2;
-  ParticleGrid pg(sim.case_info().domain, CellOrderKind::hilbert, GridderKind::D, {});
-  pg.build(ps, std::sqrt(support2), false);
+  SteppedDamBreak flow(6000, 50);
+  Gridded g(flow.sim, CellOrderKind::hilbert, GridderKind::D, false);
+  auto& [ps, support2, pg] = g;
   const std::uint32_t num_keys = pg.order().num_keys();
   std::vector<double> fluid(num_keys, 0), boundary(num_keys, 0), work(num_keys, -1);
   std::vector<std::uint32_t> idx(ps.size());
@@ -321,13 +335,9 @@ TEST(ThreadSplit, GridAndUpdatePhasesGiveOneThreadsBits) {
 // end in the fluid split's state to round-off (only which thread sums which
 // pair differs).
 TEST(ThreadSplit, DynamicMeetsEveryPairOnce) {
-  RunConfig c = small_dam_break_config(20000);
-  Simulation sim(c);
-  for (int k = 0; k < 100; ++k) sim.step();
-  ParticleSet ps = sim.particles();
-  const double support2 = sim.physics().kernel.support2;
-  ParticleGrid pg(sim.case_info().domain, CellOrderKind::sort_x, GridderKind::B, {});
-  pg.build(ps, std::sqrt(support2), true);
+  SteppedDamBreak flow(20000, 100);
+  Gridded g(flow.sim, CellOrderKind::sort_x, GridderKind::B, true);
+  auto& [ps, support2, pg] = g;
   CellLinkedList cll;
   std::vector<std::array<double, 6>> recorded_one, recorded_two[2];
   std::vector<PairRecorder> one(1), two(2);
@@ -379,13 +389,9 @@ TEST(ThreadSplit, DynamicWithPhasedUpdatesIsRefusedNamingTheFix) {
 // sum is at most threads x the region; the serial reduction runs only for
 // private accumulators on more than one thread. Structural, not a speed.
 TEST(ThreadTiming, BusySecondsFitInTheRegion) {
-  RunConfig c = small_dam_break_config(20000);
-  Simulation sim(c);
-  for (int k = 0; k < 20; ++k) sim.step();
-  ParticleSet ps = sim.particles();
-  const double support2 = sim.physics().kernel.support2;
-  ParticleGrid pg(sim.case_info().domain, CellOrderKind::sort_x, GridderKind::B, {});
-  pg.build(ps, std::sqrt(support2), true);
+  SteppedDamBreak flow(20000, 20);
+  Gridded g(flow.sim, CellOrderKind::sort_x, GridderKind::B, true);
+  auto& [ps, support2, pg] = g;
   CellLinkedList cll;
   for (int threads : {1, 2})
     for (ThreadUpdates updates : {ThreadUpdates::private_accumulators, ThreadUpdates::phased})
@@ -393,7 +399,7 @@ TEST(ThreadTiming, BusySecondsFitInTheRegion) {
         if (split == ThreadSplit::dynamic && updates == ThreadUpdates::phased) continue;
         const std::string what = std::to_string(threads) + " threads, " + to_string(updates) + ", " + to_string(split);
         ForceOp<false> op;
-        op.phys = &sim.physics();
+        op.phys = &flow.sim.physics();
         std::vector<ForceOp<false>> ops(static_cast<std::size_t>(threads), op);
         PairLoopOptions options;
         options.updates = updates;
