@@ -48,7 +48,8 @@ struct RunConfig {
   // home cells in phases where no two threads write one particle (`phased`)
   ThreadUpdates thread_updates = ThreadUpdates::private_accumulators;
   // threads > 1: the cell-linked list's home cells cut into thread ranges of
-  // equal fluid weight (`fluid`) or equal estimated pair work (`interactions`)
+  // equal fluid weight (`fluid`) or equal estimated pair work (`interactions`),
+  // or handed out in chunks as threads finish (`dynamic`, private updates only)
   ThreadSplit thread_split = ThreadSplit::fluid;
   bool progress = true;
   // neighbour search

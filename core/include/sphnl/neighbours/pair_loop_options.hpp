@@ -12,7 +12,7 @@ struct PairLoopOptions {
   bool simd = true;                          // false: the scalar distance filter
   bool skip_boundary_pairs = false;          // cell sweep (gather): no boundary-boundary candidate is tested
   ThreadUpdates updates = ThreadUpdates::private_accumulators;  // threads > 1: private copies or phases
-  ThreadSplit split = ThreadSplit::fluid;  // threads > 1: the cell-linked list's home cells by fluid or pair work
+  ThreadSplit split = ThreadSplit::fluid;  // threads > 1: the cell-linked list's home cells by fluid, by pair work, or dynamic
 };
 
 }  // namespace sphnl
