@@ -433,21 +433,20 @@ def _peer_table(med):
     each implementation's 2-thread speed-up, each with its interval."""
     n = int(med.point["particles"].max())
     ratio, speedup = _peer_ratios(med.point, n)
-    reps_r, reps_s = {k: [] for k in ratio}, {k: [] for k in speedup}
-    for tab in med.boot.tables():
-        r, s = _peer_ratios(tab, n)
-        for k in reps_r:
-            if k in r:
-                reps_r[k].append(r[k])
-        for k in reps_s:
-            if k in s:
-                reps_s[k].append(s[k])
+    keys = [("ratio", k) for k in ratio] + [("speedup", k) for k in speedup]
 
-    def cell(value, reps):
-        if len(reps) < 2:
-            return f"{value:.3g}"
-        lo, hi = S.percentile_interval(np.asarray(reps), med.boot.level)
-        return f"{value:.3g} [{lo:.3g}, {hi:.3g}]"
+    def values(tab):
+        got = dict(zip(("ratio", "speedup"), _peer_ratios(tab, n)))
+        return np.array([got[kind].get(k, np.nan) for kind, k in keys], float)
+    point, reps = med.boot.evaluate(values)
+    lo, hi = S.intervals(reps, med.boot.level)
+    ci = {key: (v, l, h) for key, v, l, h in zip(keys, point, lo, hi)}
+
+    def cell(kind, key):
+        if (kind, key) not in ci:
+            return "–"
+        value, low, high = ci[(kind, key)]
+        return f"{value:.3g}" if not np.isfinite(low) else f"{value:.3g} [{low:.3g}, {high:.3g}]"
     threads = sorted({k[-1] for k in ratio})
     rows = sorted({k[:-1] for k in ratio} | {k[1:] for k in speedup})
     head = (["cloud", "memory order", "call"] + [f"sphnl / nanoflann, {t} thr." for t in threads]
@@ -455,9 +454,7 @@ def _peer_table(med):
     lines = [f"Every configuration at N = {_fmt_n(n)} (entries per second; medians [95 % interval]):", "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for row in rows:
-        cells = [cell(ratio[(*row, t)], reps_r[(*row, t)]) if (*row, t) in ratio else "–" for t in threads]
-        cells += [cell(speedup[(impl, *row)], reps_s[(impl, *row)]) if (impl, *row) in speedup else "–"
-                  for impl in IMPLS]
+        cells = [cell("ratio", (*row, t)) for t in threads] + [cell("speedup", (impl, *row)) for impl in IMPLS]
         lines.append("| " + " | ".join([*row, *cells]) + " |")
     lines += ["", "Above 1, sphnl lists faster than nanoflann; the speed-ups are entries per second on two "
               "threads over one, each paired by round."]
