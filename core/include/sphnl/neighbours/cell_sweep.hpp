@@ -214,34 +214,26 @@ class CellSweep {
       return;
     }
     const double region_start = omp_get_wtime();
-    if (split_ == ThreadSplit::dynamic && threads > 1) {
-      // Chunks of consecutive keys keep a thread's cells near each other in
-      // memory; a chunk costs one atomic fetch.
-      const std::int64_t num_keys = static_cast<std::int64_t>(order.num_keys());
+    const bool dynamic = split_ == ThreadSplit::dynamic;
+    const std::int64_t num_keys = static_cast<std::int64_t>(order.num_keys());
 #pragma omp parallel num_threads(threads)
-      {
-        const int t = omp_get_thread_num();
-        Scratch& s = scratch_[t];
-        const double start = omp_get_wtime();
+    {
+      const int t = omp_get_thread_num();
+      Scratch& s = scratch_[t];
+      auto visit = [&](std::uint32_t key) {
+        const std::uint64_t c = coords[key];
+        if (c != CellOrder::kNoCellCoords) home(t, s, key, CellOrder::unpack_coords(c));
+      };
+      const double start = omp_get_wtime();
+      if (dynamic) {
+        // Chunks of consecutive keys keep a thread's cells near each other in
+        // memory; a chunk costs one atomic fetch.
 #pragma omp for schedule(dynamic, kDynamicChunk) nowait
-        for (std::int64_t key = 0; key < num_keys; ++key) {
-          const std::uint64_t c = coords[key];
-          if (c != CellOrder::kNoCellCoords) home(t, s, static_cast<std::uint32_t>(key), CellOrder::unpack_coords(c));
-        }
-        s.busy_seconds = omp_get_wtime() - start;
+        for (std::int64_t key = 0; key < num_keys; ++key) visit(static_cast<std::uint32_t>(key));
+      } else {
+        for (std::uint32_t key = thread_begin_[t]; key < thread_begin_[t + 1]; ++key) visit(key);
       }
-    } else {
-#pragma omp parallel num_threads(threads)
-      {
-        const int t = omp_get_thread_num();
-        Scratch& s = scratch_[t];
-        const double start = omp_get_wtime();
-        for (std::uint32_t key = thread_begin_[t]; key < thread_begin_[t + 1]; ++key) {
-          const std::uint64_t c = coords[key];
-          if (c != CellOrder::kNoCellCoords) home(t, s, key, CellOrder::unpack_coords(c));
-        }
-        s.busy_seconds = omp_get_wtime() - start;
-      }
+      s.busy_seconds = omp_get_wtime() - start;
     }
     finish_timing(region_start, threads);
     if (outputs && threads > 1) {
