@@ -542,15 +542,18 @@ def _precision_row(med, n, precision, list="cll", kgc=0, **more):
     return _row(med, particles=n, precision=precision, list=list, kgc=kgc, threads=1, **more)
 
 
-def _us_per_particle_step(med, c, precision, **more):
-    """Seconds per step over the particles simulated, CLL without KGC, one
+LIST_NAMES = {"cll": "CLL", "vlc": "VL_C", "vlx": "VL_X"}
+
+
+def _us_per_particle_step(med, c, precision, list="cll", **more):
+    """Seconds per step over the particles simulated, without KGC, one
     thread; related, the force phase alone. `more`: further axes (pair_loop)."""
     if any(k not in med for k in more):
         raise NotMeasured("no " + ", ".join(more) + " axis in the results")
     n, note = _at(med, c)
-    row = _precision_row(med, n, precision, **more)
+    row = _precision_row(med, n, precision, list=list, **more)
     n_sim = float(row["N"])
-    return (1e6 * float(row["t"]) / n_sim, note.replace("(paper: ", "(claim read at ") + ", CLL, one thread",
+    return (1e6 * float(row["t"]) / n_sim, note.replace("(paper: ", "(claim read at ") + f", {LIST_NAMES[list]}, one thread",
             {"force_us_per_particle_step": 1e6 * float(row["s_force"]) / n_sim})
 
 
@@ -597,6 +600,35 @@ def masked_over_gather(med, c):
     if "kernel_lanes_per_pair" in masked:
         related["kernel_lanes_per_pair"] = float(masked["kernel_lanes_per_pair"])
     return float(gather["t"]) / float(masked["t"]), note.replace("(paper: ", "(claim read at ") + ", CLL, double", related
+
+
+# ------------------------------------ beyond the paper: the pair loop of the Verlet lists
+@claim("vl_masked_over_gather")
+def vl_masked_over_gather(med, c):
+    """Time per step of a Verlet list's pair_loop=gather over pair_loop=masked,
+    VL_X, double; related, VL_C, both lists in mixed precision, VL_X's force
+    phase, and the kernel lanes evaluated per pair."""
+    if "pair_loop" not in med:
+        raise NotMeasured("no pair_loop axis in the results")
+    n, note = _at(med, c)
+    at = {"particles": n, "threads": 1, "kgc": 0}
+    gather = _row(med, pair_loop="gather", precision="double", list="vlx", **at)
+    masked = _row(med, pair_loop="masked", precision="double", list="vlx", **at)
+    related = {"force_phase": float(gather["s_force"]) / float(masked["s_force"])}
+    for name, where in (("VL_C", {"precision": "double", "list": "vlc"}),
+                        ("VL_X mixed", {"precision": "mixed", "list": "vlx"}),
+                        ("VL_C mixed", {"precision": "mixed", "list": "vlc"})):
+        try:
+            related[name] = _one(med, pair_loop="gather", **where, **at) / _one(med, pair_loop="masked", **where, **at)
+        except NotMeasured:
+            pass
+    if "kernel_lanes_per_pair" in masked:
+        related["kernel_lanes_per_pair"] = float(masked["kernel_lanes_per_pair"])
+    return float(gather["t"]) / float(masked["t"]), note.replace("(paper: ", "(claim read at ") + ", VL_X, double", related
+
+
+CLAIMS["step_us_vlx_masked"] = functools.partial(_us_per_particle_step, precision="double", list="vlx",
+                                                 pair_loop="masked")
 
 
 # --------------------------------------------- beyond the paper: two threads, one step

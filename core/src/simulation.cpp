@@ -72,9 +72,6 @@ void Simulation::init(Communicator* comm) {
   if (config_.pair_loop == PairLoopKind::direct && config_.list != ListKind::cll)
     throw ConfigError("pair_loop = direct applies to the cell-linked list (list = cll); a Verlet list's loop "
                       "already reads the particles in place and its build uses the gather sweep; use pair_loop = gather");
-  if (config_.pair_loop == PairLoopKind::masked && config_.list != ListKind::cll)
-    throw ConfigError("pair_loop = masked applies to the cell-linked list (list = cll); a Verlet list's loop "
-                      "reads stored pairs, not consecutive cell entries; use pair_loop = gather");
   if (config_.pair_loop != PairLoopKind::gather && config_.skip_boundary_pairs)
     throw ConfigError("skip_boundary_pairs = true needs pair_loop = gather (it picks the fluid entries of the "
                       "gathered cells); use one of the two");

@@ -887,6 +887,33 @@ class TestClaims(unittest.TestCase):
         self.assertEqual(r["verdict"], "reproduced", r)
         self.assertAlmostEqual(r["related"]["force_phase"]["value"], 0.050 / 0.045, places=6)
 
+    def test_verlet_masked_loop_claims(self):
+        """beyond_vl_loop's claims: VL_X's gather over masked loop (VL_C and
+        mixed related), and VL_X masked in µs per particle-step, read from the
+        Verlet-list rows only (a CLL row of the same axes must not be taken)."""
+        rows = []
+        for lst, gather, masked in (("vlx", 0.110, 0.090), ("vlc", 0.120, 0.125), ("cll", 0.5, 0.5)):
+            for precision in ("double", "mixed"):
+                base = {"particles": 118853, "gridder": "B", "reorder": 1, "lattice": "cubic", "h_coefficient": 1.0,
+                        "list": lst, "list_steps": 7, "precision": precision}
+                rows.append(({**base, "pair_loop": "gather"}, {"s_per_step": gather, "s_force": gather / 2}))
+                rows.append(({**base, "pair_loop": "masked"},
+                             {"s_per_step": masked, "s_force": masked / 4, "kernel_lanes_per_pair": 1.1}))
+        data = synthetic(rows)
+        r = C.evaluate(self.claim("vl_masked_over_gather"), data)
+        self.assertAlmostEqual(r["value"], 0.110 / 0.090, places=6)
+        self.assertEqual(r["verdict"], "reproduced", r)
+        self.assertAlmostEqual(r["related"]["VL_C"]["value"], 0.120 / 0.125, places=6)
+        self.assertAlmostEqual(r["related"]["force_phase"]["value"], 2 * 0.110 / 0.090, places=6)
+        self.assertAlmostEqual(r["related"]["kernel_lanes_per_pair"]["value"], 1.1, places=6)
+        r = C.evaluate(self.claim("step_us_vlx_masked"), data)
+        self.assertAlmostEqual(r["value"], 1e6 * 0.090 / 118853, places=6)
+        self.assertEqual(r["verdict"], "reproduced", r)
+        self.assertIn("VL_X", r["note"])
+        no_axis = synthetic([({"particles": 118853, "list": "vlx", "list_steps": 7, "gridder": "B", "reorder": 1},
+                              {"s_per_step": 0.1})])
+        self.assertEqual(C.evaluate(self.claim("vl_masked_over_gather"), no_axis)["verdict"], "not measured")
+
     def test_regression_flips_a_claim_end_to_end(self):
         """fake_bench --fake-regress: slowing VL_X turns its gain into a loss."""
         with tempfile.TemporaryDirectory() as tmp:

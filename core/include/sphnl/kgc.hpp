@@ -37,6 +37,26 @@ struct KgcMatrixPass {
     for (int c = 0; c < 6; ++c) v.m_kgc[c][i] += sums[c];
   }
 
+  /// `pair_loop=masked` on a Verlet list: as ForceOp::interact_candidates.
+  int interact_candidates(const ParticleView& v, std::uint32_t i, const std::uint32_t* __restrict js, int n,
+                          double support2) {
+    const CubicSpline k = phys->kernel;
+    const Home a(v, i);
+    double mxx = 0, mxy = 0, mxz = 0, myy = 0, myz = 0, mzz = 0, pairs = 0;
+#pragma omp simd reduction(+ : mxx, mxy, mxz, myy, myz, mzz, pairs) if(simd : Simd)
+    for (int p = 0; p < n; ++p) {
+      const std::int32_t j = gather_index(js[p]);
+      const double r2 = distance2(a.x - v.x[j], a.y - v.y[j], a.z - v.z[j]);
+      const bool live = (r2 < support2) & (r2 > CubicSpline::kMinR2);  // filter_list's test
+      const Terms t = pair(k, a, v, j, live);
+      mxx += t.m[0]; mxy += t.m[1]; mxz += t.m[2]; myy += t.m[3]; myz += t.m[4]; mzz += t.m[5];
+      pairs += live ? 1.0 : 0.0;
+    }
+    const double sums[6] = {mxx, mxy, mxz, myy, myz, mzz};
+    for (int c = 0; c < 6; ++c) v.m_kgc[c][i] += sums[c];
+    return static_cast<int>(pairs);
+  }
+
   /// `pair_loop=masked`: as ForceOp::interact_blocks.
   void interact_blocks(const ParticleView& v, std::uint32_t i, const std::uint32_t* __restrict first,
                        const std::uint8_t* __restrict lanes, int blocks) {

@@ -61,6 +61,34 @@ struct ForceOp {
     finish(v, i, axa, aya, aza, drhoa, uxa, uya, uza, mu_max);
   }
 
+  /// `pair_loop=masked` on a Verlet list: particle i against every stored
+  /// candidate js[0..n) (all distinct, none boundary-boundary), the distance
+  /// test 1e-18 < r^2 < support2 a lane mask in the same vector loop instead
+  /// of a compaction pass before it. r^2 is rounded as filter_list rounds
+  /// it, so exactly its survivors are pairs; the others contribute exact
+  /// zeros. Returns the number of pairs.
+  template <class T>
+  int interact_candidates(const BasicParticleView<T>& v, std::uint32_t i, const std::uint32_t* __restrict js, int n,
+                          double support2) {
+    const Constants c(*phys);
+    const Home<T> a(v, i);
+    Sum<T> axa = 0, aya = 0, aza = 0, drhoa = 0, uxa = 0, uya = 0, uza = 0;
+    Sum<T> mu_max = static_cast<Sum<T>>(max_mu);
+    Sum<T> pairs = 0;  // in the sums' type: a mix of types keeps GCC from vectorising (above)
+#pragma omp simd reduction(+ : axa, aya, aza, drhoa, uxa, uya, uza, pairs) reduction(max : mu_max) if(simd : Simd)
+    for (int p = 0; p < n; ++p) {
+      const bool live = within_support(a, v, gather_index(js[p]), support2);
+      const Terms t = pair(c, a, v, gather_index(js[p]), live);
+      axa -= t.ax; aya -= t.ay; aza -= t.az; drhoa += t.drho;
+      uxa -= t.ux; uya -= t.uy; uza -= t.uz;
+      const Sum<T> mu_abs = std::fabs(static_cast<Sum<T>>(t.mu));
+      mu_max = mu_max < mu_abs ? mu_abs : mu_max;
+      pairs += live ? Sum<T>(1) : Sum<T>(0);
+    }
+    finish(v, i, axa, aya, aza, drhoa, uxa, uya, uza, mu_max);
+    return static_cast<int>(pairs);
+  }
+
   /// `pair_loop=masked`: particle i against whole blocks of kPairBlock
   /// consecutive entries, block b starting at first[b], its lane k a pair
   /// when bit k of lanes[b] is set (filter_blocks). Every lane is evaluated
@@ -187,6 +215,17 @@ struct ForceOp {
     v.ux[j] += xa_ * dvx; v.uy[j] += xa_ * dvy; v.uz[j] += xa_ * dvz;
     t.mu = mu;
     return t;
+  }
+
+  /// The distance test of filter_list, on one lane: 1e-18 < r^2 < support2
+  /// with r^2 in double, rounded as distance2().
+  template <class T, class Index>
+  [[gnu::always_inline]] static inline bool within_support(const Home<T>& a, const BasicParticleView<T>& v, Index j,
+                                                           double support2) {
+    const double r2 = distance2(static_cast<double>(a.x) - static_cast<double>(v.x[j]),
+                                static_cast<double>(a.y) - static_cast<double>(v.y[j]),
+                                static_cast<double>(a.z) - static_cast<double>(v.z[j]));
+    return (r2 < support2) & (r2 > CubicSpline::kMinR2);
   }
 
   template <class T>

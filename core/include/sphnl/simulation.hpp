@@ -155,7 +155,8 @@ PairCounts Simulation::for_each_pair(std::vector<Op>& ops) {
   switch (config_.list) {
     case ListKind::cll: return cll_.for_each_pair(*grid_, ps_, ops, phys_.kernel.support2, pair_options_);
     case ListKind::vlc:
-    case ListKind::vlx: return verlet_.for_each_pair(ps_, ops, phys_.kernel.support2, pair_options_.simd);
+    case ListKind::vlx: return verlet_.for_each_pair(ps_, ops, phys_.kernel.support2, pair_options_.simd,
+                                                         pair_options_.loop == PairLoopKind::masked);
   }
   throw ConfigError("unknown list kind");
 }

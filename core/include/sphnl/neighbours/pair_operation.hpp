@@ -13,6 +13,11 @@
 //             the same pairs as blocks of kPairBlock consecutive entries with
 //             a lane mask (pair_loop=masked, filter_blocks); an operation
 //             without it is handed the blocks' pairs as a list.
+//   interact_candidates(view, i, js, n, support2)    (optional)
+//             a Verlet list's stored candidates of i, the distance test
+//             (1e-18 < r^2 < support2, as filter_list) made in the loop, the
+//             number of pairs returned (pair_loop=masked on a Verlet list); an
+//             operation without it is handed the survivors of filter_list.
 #include <concepts>
 #include <cstddef>
 #include <cstdint>
@@ -66,6 +71,12 @@ template <class Op, class View>
 concept BlockPairOperation = requires(Op& op, const View& v, std::uint32_t i, const std::uint32_t* first,
                                       const std::uint8_t* lanes, int blocks) {
   op.interact_blocks(v, i, first, lanes, blocks);
+};
+
+template <class Op, class View>
+concept CandidatePairOperation = requires(Op& op, const View& v, std::uint32_t i, const std::uint32_t* js, int n,
+                                          double support2) {
+  { op.interact_candidates(v, i, js, n, support2) } -> std::convertible_to<int>;
 };
 
 }  // namespace sphnl

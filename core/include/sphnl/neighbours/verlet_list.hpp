@@ -51,9 +51,15 @@ class VerletList {
   /// the rows run instead in the phases of ThreadPhases planned on the build's
   /// cells (a row's pairs lie in its home cell's write set), without copies.
   /// `simd` = false: the scalar distance filter (decided once per pass).
+  /// `masked` (pair_loop=masked): a row's stored candidates go to the
+  /// operation's interact_candidates whole, the distance test a lane mask in
+  /// its vector loop (PairCounts::idle_lanes counts the lanes that are not
+  /// pairs); an operation without it takes the filter's survivors.
   template <PairOperation Op>
-  PairCounts for_each_pair(ParticleSet& ps, std::vector<Op>& ops, double support2, bool simd = true) {
-    return simd ? loop<true>(ps, ops, support2) : loop<false>(ps, ops, support2);
+  PairCounts for_each_pair(ParticleSet& ps, std::vector<Op>& ops, double support2, bool simd = true,
+                           bool masked = false) {
+    if (masked) return simd ? loop<true, true>(ps, ops, support2) : loop<false, true>(ps, ops, support2);
+    return simd ? loop<true, false>(ps, ops, support2) : loop<false, false>(ps, ops, support2);
   }
 
   /// Stored pairs (each unordered pair once).
@@ -66,7 +72,7 @@ class VerletList {
   std::size_t bytes() const;
 
  private:
-  template <bool Simd, PairOperation Op>
+  template <bool Simd, bool Masked, PairOperation Op>
   PairCounts loop(ParticleSet& ps, std::vector<Op>& ops, double support2);
   template <bool Simd, bool SkipBoundaryPairs>
   void build_sweep(const ParticleGrid& pg, ParticleSet& ps, double list_radius2, int threads);
@@ -113,7 +119,7 @@ class VerletList {
   int phased_threads_ = 0;
 };
 
-template <bool Simd, PairOperation Op>
+template <bool Simd, bool Masked, PairOperation Op>
 PairCounts VerletList::loop(ParticleSet& ps, std::vector<Op>& ops, double support2) {
   const int threads = static_cast<int>(ops.size());
   constexpr unsigned outputs = Op::kFields & (fields::force_out | fields::kgc_m_out);
@@ -135,8 +141,14 @@ PairCounts VerletList::loop(ParticleSet& ps, std::vector<Op>& ops, double suppor
         const int n = static_cast<int>(off[r + 1] - off[r]);
         if (n == 0) continue;
         const std::uint32_t i = visit_[r];
-        const int m = filter_list<Simd>(s.view, i, nb + off[r], n, support2, survivors);
-        if (m > 0) ops[t].interact(s.view, i, survivors, m);
+        int m = 0;
+        if constexpr (Masked && CandidatePairOperation<Op, ParticleView>) {
+          m = ops[t].interact_candidates(s.view, i, nb + off[r], n, support2);
+          c.idle_lanes += static_cast<std::uint64_t>(n - m);
+        } else {
+          m = filter_list<Simd>(s.view, i, nb + off[r], n, support2, survivors);
+          if (m > 0) ops[t].interact(s.view, i, survivors, m);
+        }
         c.candidates += static_cast<std::uint64_t>(n);
         c.interactions += static_cast<std::uint64_t>(m);
       }
