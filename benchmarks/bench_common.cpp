@@ -102,12 +102,13 @@ std::string legacy_cache_path(const FlowState& f, const std::string& dir) {
 }
 
 /// Whether `path` holds the state `cfg` reaches at `flow_time` (same case,
-/// physics and thread count, stored time at or just past flow_time).
+/// physics and thread count, stored time at or just past flow_time; keys
+/// added to the config since it was written count at their defaults).
 bool snapshot_fresh(const std::string& path, const RunConfig& cfg, double flow_time) {
   if (!std::filesystem::exists(path)) return false;
   try {
     const SnapshotInfo info = read_snapshot_info(path);
-    return info.time >= flow_time && json::parse(info.config_json) == config_to_json(cfg);
+    return info.time >= flow_time && snapshot_config_matches(info.config_json, cfg);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sphnl_bench: %s; rebuilding it\n", e.what());
     return false;

@@ -1,10 +1,13 @@
 // Snapshots: a saved state restores bit-for-bit (in id order, whatever the
-// memory order), and a damaged file is refused with a message naming it.
+// memory order), a damaged file is refused with a message naming it, and a
+// stored config matches the wanted one across keys added since.
 #include <gtest/gtest.h>
 
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+
+#include <nlohmann/json.hpp>
 
 #include "sphnl/snapshot.hpp"
 
@@ -82,6 +85,26 @@ TEST(Snapshot, WrongSizeIsRefused) {
   sphnl::Simulation b(other);
   EXPECT_THROW(sphnl::load_snapshot(path, b), std::runtime_error);
   std::filesystem::remove(path);
+}
+
+// A stored state stays valid when a config key is added at its default (the
+// old behaviour), and is stale when any stored or new key differs.
+TEST(Snapshot, ConfigMatchToleratesKeysAddedAtTheirDefault) {
+  const sphnl::RunConfig wanted = small_config();
+  nlohmann::json stored = sphnl::config_to_json(wanted);
+  EXPECT_TRUE(sphnl::snapshot_config_matches(stored.dump(), wanted));
+  stored.erase("thread_split");  // a snapshot written before the key existed
+  EXPECT_TRUE(sphnl::snapshot_config_matches(stored.dump(), wanted));
+  sphnl::RunConfig split = wanted;
+  split.thread_split = sphnl::ThreadSplit::dynamic;  // the new key away from its default
+  EXPECT_FALSE(sphnl::snapshot_config_matches(stored.dump(), split));
+  sphnl::RunConfig denser = wanted;
+  denser.particles = 3000;  // a stored key that differs
+  EXPECT_FALSE(sphnl::snapshot_config_matches(stored.dump(), denser));
+  nlohmann::json removed = sphnl::config_to_json(wanted);
+  removed["retired_key"] = 1;  // a key the code no longer knows
+  EXPECT_FALSE(sphnl::snapshot_config_matches(removed.dump(), wanted));
+  EXPECT_THROW(sphnl::snapshot_config_matches("[1, 2]", wanted), std::runtime_error);
 }
 
 }  // namespace

@@ -142,4 +142,15 @@ SnapshotInfo load_snapshot(const std::string& path, Simulation& sim) {
   return info;
 }
 
+bool snapshot_config_matches(const std::string& stored_json, const RunConfig& wanted) {
+  const nlohmann::json stored = nlohmann::json::parse(stored_json);
+  if (!stored.is_object()) throw std::runtime_error("a snapshot's config is not a JSON object: " + stored_json);
+  const nlohmann::json want = config_to_json(wanted), defaults = config_to_json(RunConfig{});
+  for (const auto& [key, value] : stored.items())
+    if (!want.contains(key) || want.at(key) != value) return false;
+  for (const auto& [key, value] : want.items())
+    if (!stored.contains(key) && defaults.at(key) != value) return false;
+  return true;
+}
+
 }  // namespace sphnl
