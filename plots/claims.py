@@ -588,18 +588,29 @@ def masked_over_gather(med, c):
     if "pair_loop" not in med:
         raise NotMeasured("no pair_loop axis in the results")
     n, note = _at(med, c)
-    at = {"particles": n, "list": "cll", "threads": 1}
-    gather = _row(med, pair_loop="gather", precision="double", kgc=0, **at)
-    masked = _row(med, pair_loop="masked", precision="double", kgc=0, **at)
+    value, related = _gather_over_masked(med, {"particles": n, "list": "cll", "threads": 1},
+                                         {"precision": "double", "kgc": 0},
+                                         (("KGC", {"precision": "double", "kgc": 1}),
+                                          ("mixed", {"precision": "mixed", "kgc": 0})))
+    return value, note.replace("(paper: ", "(claim read at ") + ", CLL, double", related
+
+
+def _gather_over_masked(med, at, main, others):
+    """pair_loop=gather over masked time per step for the configuration
+    at + main; related, the force phase's ratio, the same ratio for each
+    (name, where) of `others` that was measured, and the masked loop's
+    kernel lanes per pair."""
+    gather = _row(med, pair_loop="gather", **main, **at)
+    masked = _row(med, pair_loop="masked", **main, **at)
     related = {"force_phase": float(gather["s_force"]) / float(masked["s_force"])}
-    for name, where in (("KGC", {"precision": "double", "kgc": 1}), ("mixed", {"precision": "mixed", "kgc": 0})):
+    for name, where in others:
         try:
             related[name] = _one(med, pair_loop="gather", **where, **at) / _one(med, pair_loop="masked", **where, **at)
         except NotMeasured:
             pass
     if "kernel_lanes_per_pair" in masked:
         related["kernel_lanes_per_pair"] = float(masked["kernel_lanes_per_pair"])
-    return float(gather["t"]) / float(masked["t"]), note.replace("(paper: ", "(claim read at ") + ", CLL, double", related
+    return float(gather["t"]) / float(masked["t"]), related
 
 
 # ------------------------------------ beyond the paper: the pair loop of the Verlet lists
@@ -611,20 +622,12 @@ def vl_masked_over_gather(med, c):
     if "pair_loop" not in med:
         raise NotMeasured("no pair_loop axis in the results")
     n, note = _at(med, c)
-    at = {"particles": n, "threads": 1, "kgc": 0}
-    gather = _row(med, pair_loop="gather", precision="double", list="vlx", **at)
-    masked = _row(med, pair_loop="masked", precision="double", list="vlx", **at)
-    related = {"force_phase": float(gather["s_force"]) / float(masked["s_force"])}
-    for name, where in (("VL_C", {"precision": "double", "list": "vlc"}),
-                        ("VL_X mixed", {"precision": "mixed", "list": "vlx"}),
-                        ("VL_C mixed", {"precision": "mixed", "list": "vlc"})):
-        try:
-            related[name] = _one(med, pair_loop="gather", **where, **at) / _one(med, pair_loop="masked", **where, **at)
-        except NotMeasured:
-            pass
-    if "kernel_lanes_per_pair" in masked:
-        related["kernel_lanes_per_pair"] = float(masked["kernel_lanes_per_pair"])
-    return float(gather["t"]) / float(masked["t"]), note.replace("(paper: ", "(claim read at ") + ", VL_X, double", related
+    value, related = _gather_over_masked(med, {"particles": n, "threads": 1, "kgc": 0},
+                                         {"precision": "double", "list": "vlx"},
+                                         (("VL_C", {"precision": "double", "list": "vlc"}),
+                                          ("VL_X mixed", {"precision": "mixed", "list": "vlx"}),
+                                          ("VL_C mixed", {"precision": "mixed", "list": "vlc"})))
+    return value, note.replace("(paper: ", "(claim read at ") + ", VL_X, double", related
 
 
 CLAIMS["step_us_vlx_masked"] = functools.partial(_us_per_particle_step, precision="double", list="vlx",

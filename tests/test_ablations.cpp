@@ -73,41 +73,31 @@ std::vector<Ablation> ablations() {
                }});
   // On a Verlet list: every stored candidate evaluated, the distance test a
   // lane mask (interact_candidates); both lists, with KGC, threads, mixed, simd=off.
+  auto masked_verlet = [](ListKind l, std::function<void(RunConfig&)> more) {
+    return [l, more](RunConfig& c) {
+      c.pair_loop = PairLoopKind::masked;
+      c.list = l;
+      c.list_steps = 5;
+      more(c);
+    };
+  };
   for (ListKind l : {ListKind::vlc, ListKind::vlx})
     for (bool reorder : {false, true})
       a.push_back({std::string("pair_loop=masked list=") + to_string(l) + " reorder=" + (reorder ? "1" : "0"),
-                   [l, reorder](RunConfig& c) {
-                     c.pair_loop = PairLoopKind::masked;
-                     c.list = l;
-                     c.list_steps = 5;
-                     c.reorder = reorder;
-                   }});
-  a.push_back({"pair_loop=masked list=vlx kgc=1 threads=2", [](RunConfig& c) {
-                 c.pair_loop = PairLoopKind::masked;
-                 c.list = ListKind::vlx;
-                 c.list_steps = 5;
+                   masked_verlet(l, [reorder](RunConfig& c) { c.reorder = reorder; })});
+  a.push_back({"pair_loop=masked list=vlx kgc=1 threads=2", masked_verlet(ListKind::vlx, [](RunConfig& c) {
                  c.kgc = true;
                  c.threads = 2;
-               }});
-  a.push_back({"pair_loop=masked list=vlx thread_updates=phased threads=2", [](RunConfig& c) {
-                 c.pair_loop = PairLoopKind::masked;
-                 c.list = ListKind::vlx;
-                 c.list_steps = 5;
+               })});
+  a.push_back({"pair_loop=masked list=vlx thread_updates=phased threads=2",
+               masked_verlet(ListKind::vlx, [](RunConfig& c) {
                  c.thread_updates = ThreadUpdates::phased;
                  c.threads = 2;
-               }});
-  a.push_back({"pair_loop=masked list=vlc precision=mixed", [](RunConfig& c) {
-                 c.pair_loop = PairLoopKind::masked;
-                 c.list = ListKind::vlc;
-                 c.list_steps = 5;
-                 c.precision = Precision::mixed;
-               }});
-  a.push_back({"pair_loop=masked list=vlx simd=off", [](RunConfig& c) {
-                 c.pair_loop = PairLoopKind::masked;
-                 c.list = ListKind::vlx;
-                 c.list_steps = 5;
-                 c.simd = false;
-               }});
+               })});
+  a.push_back({"pair_loop=masked list=vlc precision=mixed",
+               masked_verlet(ListKind::vlc, [](RunConfig& c) { c.precision = Precision::mixed; })});
+  a.push_back({"pair_loop=masked list=vlx simd=off",
+               masked_verlet(ListKind::vlx, [](RunConfig& c) { c.simd = false; })});
   for (ListKind l : {ListKind::cll, ListKind::vlx}) {
     a.push_back({std::string("simd=off list=") + to_string(l), [l](RunConfig& c) {
                    c.simd = false;
