@@ -92,6 +92,7 @@ struct CallResult {
   std::uint64_t entries = 0;
   double bytes = 0;
   double s_build = -1, s_search = -1;  // sphnl only
+  double s_sweep_max = 0, sweep_busy_fraction = 0;  // sphnl only
 };
 
 /// One implementation on one cloud: `call(fresh)` builds the full lists once,
@@ -119,6 +120,8 @@ class SphnlRunner : public Runner {
     r.bytes = static_cast<double>(search_->bytes() + lists_->bytes());
     r.s_build = search_->times().build;
     r.s_search = search_->times().search;
+    r.s_sweep_max = search_->times().sweep_max;
+    r.sweep_busy_fraction = search_->times().sweep_sum / (so_.threads * search_->times().sweep_max);
     return r;
   }
   PairChecksum checksum() const override { return checksum_of(*lists_); }
@@ -276,6 +279,8 @@ void register_search_benchmarks(const json& sweep) {
         if (r.s_build >= 0) {
           st.counters["s_build"] = r.s_build;
           st.counters["s_search"] = r.s_search;
+          st.counters["s_search_sweep"] = r.s_sweep_max;
+          st.counters["search_busy_fraction"] = r.sweep_busy_fraction;
         }
         st.counters["bytes"] = r.bytes;
         st.counters["run_sequence"] = static_cast<double>(sequence);

@@ -67,6 +67,24 @@ TEST(SearchThreads, EngineRowsAreThoseOfOneThread) {
         }
 }
 
+// The sweep times are parts of the search time: the longest sweep lies
+// within it, and the summed sweeps within threads times the longest.
+TEST(SearchThreads, SweepTimesLieWithinTheSearch) {
+  const peers::Cloud lattice = peers::make_cloud(peers::CloudKind::lattice, peers::MemoryOrder::generated, 27000);
+  for (int threads : {1, 2, 3}) {
+    SearchOptions so;
+    so.threads = threads;
+    NeighbourSearch search(so);
+    NeighbourLists lists;
+    search.run(lattice.x, lattice.y, lattice.z, 2.6, lists);
+    const SearchTimes& t = search.times();
+    EXPECT_GT(t.sweep_max, 0.0) << threads;
+    EXPECT_LE(t.sweep_max, t.search) << threads;
+    EXPECT_LE(t.sweep_sum, threads * t.sweep_max * (1 + 1e-12)) << threads;
+    EXPECT_GE(t.sweep_sum, t.sweep_max) << threads;
+  }
+}
+
 TEST(SearchThreads, ReusedSearchAndListsStayExact) {
   // The second run reuses the segments of the first (another cloud, another
   // split of the rows): still the one-thread rows.

@@ -13,8 +13,8 @@
 // pair_filter.hpp tests the candidates and compacts the survivors straight
 // into the CSR output.
 //
-// Threads: the cells are split into `threads` contiguous key ranges holding
-// about as many points each; each thread sweeps its range and writes its rows
+// Threads: the cells are split into `threads` contiguous key ranges of about
+// equal work (the sum of n_k^2 over their cells); each thread sweeps its range and writes its rows
 // into its own segment of the output, which it allocates (once, from the
 // expected count of its cells) and so first-touches itself. The rows are
 // those of one thread, in the same order: only where their entries live
@@ -97,6 +97,10 @@ class NeighbourLists {
 struct SearchTimes {
   double build = 0;   // bounds, cells, cell keys, gridder, reordering
   double search = 0;  // distance tests and writing the lists
+  // Threads' seconds inside their sweeps (split_rows): the longest, and the
+  // sum. busy_sum / (threads * busy_max) is the sweep's balance; search minus
+  // busy_max the serial rest (key ranges, global offsets).
+  double sweep_max = 0, sweep_sum = 0;
 };
 
 class NeighbourSearch {
@@ -146,6 +150,7 @@ class NeighbourSearch {
   // reorder off: per thread, the 27 cells of one home cell, gathered
   std::vector<Gather> gather_;
   std::vector<std::uint32_t> key_bounds_;  // first key of every thread's range, and num_keys
+  std::vector<std::uint64_t> key_work_;    // threads > 1: running sum of n_k^2 over the keys
   SearchTimes times_;
 };
 
