@@ -14,9 +14,10 @@
 // into the CSR output.
 //
 // Threads: the cells are split into `threads` contiguous key ranges of about
-// equal work (the sum of n_k^2 over their cells); each thread sweeps its range and writes its rows
-// into its own segment of the output, which it allocates (once, from the
-// expected count of its cells) and so first-touches itself. The rows are
+// equal work (the sum of n_k^2 over their cells); each thread sweeps its
+// range and writes its rows into its own segment of the output, which it
+// allocates (once, from the expected count of its cells) and so
+// first-touches itself. The rows are
 // those of one thread, in the same order: only where their entries live
 // differs. The grid, the cell keys, the gridders, the reordering
 // permutation, the stencil walk and the filter are those of the cell-linked
@@ -98,8 +99,8 @@ struct SearchTimes {
   double build = 0;   // bounds, cells, cell keys, gridder, reordering
   double search = 0;  // distance tests and writing the lists
   // Threads' seconds inside their sweeps (split_rows): the longest, and the
-  // sum. busy_sum / (threads * busy_max) is the sweep's balance; search minus
-  // busy_max the serial rest (key ranges, global offsets).
+  // sum. sweep_sum / (threads * sweep_max) is the sweep's balance; search
+  // minus sweep_max the serial rest (key ranges, global offsets).
   double sweep_max = 0, sweep_sum = 0;
 };
 
