@@ -44,7 +44,7 @@ const std::vector<std::pair<std::string, json>>& search_axes() {
   static const std::vector<std::pair<std::string, json>> axes = {
       {"particles", nullptr}, {"gridder", nullptr},          {"cell_order", nullptr}, {"reorder", nullptr},
       {"threads", nullptr},   {"impl", "sphnl"},             {"cloud", "lattice"},
-      {"memory_order", "generated"}, {"call", "warm"}};
+      {"memory_order", "generated"}, {"call", "warm"}, {"pages", "base"}};
   return axes;
 }
 
@@ -96,11 +96,15 @@ struct CallResult {
 };
 
 /// One implementation on one cloud: `call(fresh)` builds the full lists once,
-/// into new objects and never-touched memory when `fresh`.
+/// into new objects and never-touched memory when `fresh` (after release()).
 class Runner {
  public:
   virtual ~Runner() = default;
   virtual CallResult call(bool fresh) = 0;
+  /// Frees every object the calls so far made (search structures, lists), so
+  /// that malloc_trim can hand their pages back before a fresh call: freed
+  /// inside the call instead, they would be reused warm by the new objects.
+  virtual void release() = 0;
   virtual PairChecksum checksum() const = 0;
 };
 
@@ -108,7 +112,8 @@ class SphnlRunner : public Runner {
  public:
   SphnlRunner(const SearchOptions& so, const peers::Cloud& cloud) : so_(so), cloud_(cloud) {}
   CallResult call(bool fresh) override {
-    if (fresh) {
+    if (fresh || !search_) {
+      release();
       search_ = std::make_unique<NeighbourSearch>(so_);
       lists_ = std::make_unique<NeighbourLists>();
     }
@@ -125,6 +130,10 @@ class SphnlRunner : public Runner {
     return r;
   }
   PairChecksum checksum() const override { return checksum_of(*lists_); }
+  void release() override {
+    search_.reset();
+    lists_.reset();
+  }
 
  private:
   SearchOptions so_;
@@ -146,12 +155,12 @@ class ApiRunner : public Runner {
     options_.cell_order = so.order;
     options_.reorder = so.reorder;
     options_.threads = so.threads;
+    options_.huge_pages = so.huge_pages;
   }
   CallResult call(bool fresh) override {
     if (fresh || !search_) {
+      release();
       search_ = std::make_unique<Search>(kRadius, options_);
-      offsets_ = std::vector<std::int64_t>();
-      indices_ = std::vector<std::uint32_t>();
     }
     Stopwatch sw;
     search_->build(cloud_.x, cloud_.y, cloud_.z);
@@ -181,6 +190,11 @@ class ApiRunner : public Runner {
     }
     return c;
   }
+  void release() override {
+    search_.reset();
+    offsets_ = std::vector<std::int64_t>();
+    indices_ = std::vector<std::uint32_t>();
+  }
 
  private:
   Search::Options options_;
@@ -196,7 +210,7 @@ class NanoflannRunner : public Runner {
  public:
   NanoflannRunner(int threads, const peers::Cloud& cloud) : threads_(threads), cloud_(cloud) {}
   CallResult call(bool fresh) override {
-    if (fresh) lists_ = std::make_unique<peers::PeerLists>();
+    if (fresh || !lists_) lists_ = std::make_unique<peers::PeerLists>();
     Stopwatch sw;
     peers::nanoflann_full_lists(cloud_.x, cloud_.y, cloud_.z, kRadius, threads_, *lists_);
     CallResult r;
@@ -207,6 +221,7 @@ class NanoflannRunner : public Runner {
     return r;
   }
   PairChecksum checksum() const override { return lists_->checksum(); }
+  void release() override { lists_.reset(); }
 
  private:
   int threads_;
@@ -249,6 +264,12 @@ void register_search_benchmarks(const json& sweep) {
     const std::string call = axis_value(p, "call").get<std::string>();
     if (call != "warm" && call != "first") throw std::invalid_argument("call: '" + call + "'; allowed: warm, first");
     const bool first = call == "first";
+    // pages: the lists on 4 KiB base pages (the default, as every result
+    // before the axis existed) or advised as huge pages (the library's
+    // default, SearchOptions::huge_pages); nanoflann's rows ignore it.
+    const std::string pages = axis_value(p, "pages").get<std::string>();
+    if (pages != "base" && pages != "huge") throw std::invalid_argument("pages: '" + pages + "'; allowed: base, huge");
+    so.huge_pages = pages == "huge";
     const std::string name = benchmark_name("search", p, axes);
     benchmark::RegisterBenchmark(name.c_str(), [=](benchmark::State& st) {
       guarded(name, [&] {
@@ -264,11 +285,15 @@ void register_search_benchmarks(const json& sweep) {
         }
         CallResult r;
         for (auto _ : st) {
-          // call: first stands in for the first call of a fresh process: new
-          // objects, and every free page the allocator holds given back to the
-          // kernel first (malloc_trim), so each page the call writes is a
-          // fresh one and its fault is timed (docs/CONTRACTS.md).
-          if (first) malloc_trim(0);
+          // call: first stands in for the first call of a fresh process: the
+          // last call's objects freed, every free page the allocator holds
+          // given back to the kernel (malloc_trim), then new objects, so each
+          // page the call writes is a fresh one and its fault is timed
+          // (docs/CONTRACTS.md).
+          if (first) {
+            runner->release();
+            malloc_trim(0);
+          }
           r = runner->call(first);
         }
         if (first) check();  // the lists just timed, before anything is reported

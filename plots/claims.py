@@ -531,6 +531,33 @@ def search_two_threads_over_one(med, c):
             note.replace("(paper: ", "(claim read at ") + ", engine", related)
 
 
+# ------------------------------ beyond the paper: first calls and huge pages
+def _call_seconds(med, n, threads, call, pages):
+    """Median seconds of one sphnl engine call at N = n."""
+    if "pages" not in med or "s_call" not in med:
+        raise NotMeasured("no pages axis or s_call counter in the results (experiments/first_call.json)")
+    return _one(med, col="s_call", particles=n, impl="sphnl", threads=threads, call=call, pages=pages)
+
+
+def _first_call_ratio(med, c, slow, fast):
+    """Seconds of the (call, pages) `slow` over `fast`, one thread; related,
+    the same on two threads."""
+    n, note = _at(med, c)
+    related = {}
+    try:
+        related["two_threads"] = _call_seconds(med, n, 2, *slow) / _call_seconds(med, n, 2, *fast)
+    except NotMeasured:
+        pass
+    return (_call_seconds(med, n, 1, *slow) / _call_seconds(med, n, 1, *fast),
+            note.replace("(paper: ", "(claim read at ") + ", one thread", related)
+
+
+CLAIMS["first_call_huge_over_base"] = functools.partial(_first_call_ratio, slow=("first", "base"),
+                                                        fast=("first", "huge"))
+CLAIMS["first_over_warm_huge"] = functools.partial(_first_call_ratio, slow=("first", "huge"),
+                                                   fast=("warm", "huge"))
+
+
 # ------------------------------------- beyond the paper: precision of the pair kernel
 PRECISION_SOURCES = (("CLL+KGC", {"list": "cll", "kgc": 1}), ("VL_X", {"list": "vlx", "kgc": 0}),
                      ("VL_X+KGC", {"list": "vlx", "kgc": 1}))

@@ -109,7 +109,7 @@ TEST(ExperimentSchema, BenchmarkOnlyAxesAreTheOnesThatAreNotConfigKeys) {
   // the snapshot's flow time, the search family's peers and clouds, the
   // counters kind's simulated caches: none of them is a run setting
   const std::vector<std::string> only = benchmark_only_axes();
-  EXPECT_EQ(only, (std::vector<std::string>{"flow_time", "impl", "cloud", "memory_order", "call", "cache_model", "ranks"}));
+  EXPECT_EQ(only, (std::vector<std::string>{"flow_time", "impl", "cloud", "memory_order", "call", "pages", "cache_model", "ranks"}));
   const std::vector<std::string> keys = config_keys();
   for (const auto& axis : only) EXPECT_EQ(std::count(keys.begin(), keys.end(), axis), 0) << axis;
 }

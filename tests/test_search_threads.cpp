@@ -2,14 +2,17 @@
 // NeighbourSearch with 2 or 3 threads gives exactly the rows of one thread
 // (same row order, same points, same entries in the same order) for every
 // gridder, cell order and reorder choice, and the public API's rows are the
-// same whatever its thread count.
+// same whatever its thread count. Huge pages change where the lists live,
+// not what they hold.
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <random>
 #include <vector>
 
 #include "peers/clouds.hpp"
 #include "sphnl/neighbours/neighbour_search.hpp"
+#include "sphnl/neighbours/uninit_buffer.hpp"
 #include "sphnl/search.hpp"
 #include "support/clouds.hpp"
 
@@ -118,6 +121,88 @@ TEST(SearchThreads, PublicApiRowsDoNotDependOnThreads) {
       }
     }
   }
+}
+
+TEST(HugePages, LargeBuffersAreAlignedToWholeHugePages) {
+  for (std::size_t bytes : {kHugePageMinBytes, kHugePageMinBytes + 12345, 3 * kHugePageBytes + 1}) {
+    void* p = allocate_buffer(bytes, true);
+    EXPECT_EQ(reinterpret_cast<std::uintptr_t>(p) % kHugePageBytes, 0u) << bytes;
+    static_cast<unsigned char*>(p)[bytes - 1] = 1;  // the whole size is writable
+    std::free(p);
+  }
+  // Small buffers and huge_pages off: plain malloc alignment, usable memory.
+  for (bool huge : {false, true}) {
+    void* p = allocate_buffer(1000, huge);
+    ASSERT_NE(p, nullptr);
+    EXPECT_EQ(reinterpret_cast<std::uintptr_t>(p) % alignof(std::max_align_t), 0u);
+    std::free(p);
+  }
+  EXPECT_THROW(allocate_buffer(~std::size_t{0} / 2, true), std::bad_alloc);
+}
+
+TEST(HugePages, BufferVectorSwitchesItsPagesAndKeepsItsValues) {
+  BufferVector<std::uint64_t> v;
+  EXPECT_FALSE(v.get_allocator().huge_pages);
+  v.assign(10, 7);
+  use_huge_pages(v, false);  // already base pages: kept as it is
+  EXPECT_EQ(v.size(), 10u);
+  use_huge_pages(v, true);  // switched: empty, the next allocation huge
+  EXPECT_TRUE(v.empty());
+  EXPECT_TRUE(v.get_allocator().huge_pages);
+  v.resize(kHugePageMinBytes / sizeof(std::uint64_t));
+  EXPECT_EQ(reinterpret_cast<std::uintptr_t>(v.data()) % kHugePageBytes, 0u);
+  for (std::size_t k = 0; k < v.size(); ++k) v[k] = k;
+  v.push_back(1);  // growth copies the values into the new buffer
+  for (std::size_t k = 0; k + 1 < v.size(); ++k) ASSERT_EQ(v[k], k);
+  BufferVector<std::uint64_t> w;
+  w.swap(v);  // the flag travels with the memory
+  EXPECT_TRUE(w.get_allocator().huge_pages);
+  EXPECT_FALSE(v.get_allocator().huge_pages);
+}
+
+// 27 000 lattice points hold 2 million entries (8 MB): the lists, offsets and
+// coordinates are above kHugePageMinBytes, so huge_pages on takes the huge
+// path for them; the rows are those of base pages, on 1 and 2 threads, and
+// a search and lists reused across the two choices stay exact.
+TEST(HugePages, RowsDoNotDependOnThePages) {
+  const peers::Cloud lattice = peers::make_cloud(peers::CloudKind::lattice, peers::MemoryOrder::shuffled, 27000);
+  ParticleSet ps;
+  ps.x = lattice.x;
+  ps.y = lattice.y;
+  ps.z = lattice.z;
+  SearchOptions base;
+  base.huge_pages = false;
+  const EngineRows reference = engine_rows(ps, 2.6, base);
+  EXPECT_GT(reference.row.size() * 70, kHugePageMinBytes / sizeof(std::uint32_t));
+  for (int threads : {1, 2}) {
+    SearchOptions huge;
+    huge.threads = threads;
+    huge.huge_pages = true;
+    const EngineRows rows = engine_rows(ps, 2.6, huge);
+    EXPECT_EQ(rows.point, reference.point) << threads;
+    EXPECT_EQ(rows.row, reference.row) << threads;
+  }
+  NeighbourSearch first(base), second(SearchOptions{});
+  NeighbourLists lists;
+  for (NeighbourSearch* search : {&first, &second, &first}) {
+    search->run(ps.x, ps.y, ps.z, 2.6, lists);
+    ASSERT_EQ(lists.num_rows(), reference.row.size());
+    for (std::size_t r = 0; r < lists.num_rows(); ++r) {
+      const auto row = lists.row(r);
+      ASSERT_EQ(std::vector<std::uint32_t>(row.begin(), row.end()), reference.row[r]) << r;
+    }
+  }
+  // The public API's option reaches the engine: same rows either way.
+  Search::Options options;
+  options.huge_pages = false;
+  Search a(2.6, options);
+  options.huge_pages = true;
+  Search b(2.6, options);
+  a.build(ps.x, ps.y, ps.z);
+  b.build(ps.x, ps.y, ps.z);
+  const CompressedRows ra = a.rows(Rows::full), rb = b.rows(Rows::full);
+  EXPECT_EQ(ra.offsets, rb.offsets);
+  EXPECT_EQ(ra.indices, rb.indices);
 }
 
 }  // namespace

@@ -82,6 +82,8 @@ const std::vector<Axis>& axes() {
       {"cloud", {"search"}, {}, one_of({"lattice", "random"})},
       {"memory_order", {"search"}, {}, one_of({"generated", "shuffled"})},
       {"call", {"search"}, {}, one_of({"warm", "first"})},
+      // the lists' pages (a sweep without it means base, as before the axis)
+      {"pages", {"search"}, {}, one_of({"base", "huge"})},
       // the caches valgrind simulates for the counters kind (harness/valgrind.py)
       {"cache_model", {"counters"}, {"counters"}, cache_model_name},
       // processes of a distributed `sphnl run` under mpirun (the mpi kind,

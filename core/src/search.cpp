@@ -95,6 +95,7 @@ struct Search::Impl {
           s.order = o.cell_order;
           s.reorder = o.reorder;
           s.threads = o.threads;
+          s.huge_pages = o.huge_pages;
           return s;
         }()) {}
 

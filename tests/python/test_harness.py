@@ -843,6 +843,35 @@ class TestClaims(unittest.TestCase):
         r = C.evaluate(self.claim("search_two_threads_over_one"), data[data["threads"] == 1])
         self.assertEqual(r["verdict"], "not measured", r)
 
+    def test_first_call_claims(self):
+        """first_call's claims: a first call's seconds with base pages over
+        huge pages, and a first call over a warm one with huge pages, one
+        thread (two threads related), read from s_call at N = 1 000 000."""
+        seconds = {("first", "base", 1): 1.30, ("first", "huge", 1): 0.26, ("warm", "huge", 1): 0.20,
+                   ("warm", "base", 1): 0.20, ("first", "base", 2): 0.80, ("first", "huge", 2): 0.16,
+                   ("warm", "huge", 2): 0.11, ("warm", "base", 2): 0.11}
+        rows = []
+        for rep in range(3):
+            for (call, pages, threads), t in seconds.items():
+                rows.append({"experiment": "first_call", "family": "search", "particles": 1000000, "gridder": "B",
+                             "cell_order": "sort_x", "reorder": 1, "threads": threads, "impl": "sphnl",
+                             "cloud": "lattice", "memory_order": "generated", "call": call, "pages": pages,
+                             "repetition_index": rep, "round": rep, "error_occurred": False, "error_message": "",
+                             "run_name": f"search/{call}/{pages}/{threads}", "n_particles": 1000000,
+                             "s_call": t * (1 + 0.001 * rep)})
+        data = pd.DataFrame(rows)
+        r = C.evaluate(self.claim("first_call_huge_over_base"), data)
+        self.assertAlmostEqual(r["value"], 5.0, places=6)
+        self.assertEqual(r["verdict"], "reproduced", r)
+        self.assertAlmostEqual(r["related"]["two_threads"]["value"], 5.0, places=6)
+        r = C.evaluate(self.claim("first_over_warm_huge"), data)
+        self.assertAlmostEqual(r["value"], 1.3, places=6)
+        self.assertEqual(r["verdict"], "reproduced", r)
+        self.assertAlmostEqual(r["related"]["two_threads"]["value"], 0.16 / 0.11, places=6)
+        # Results without the pages axis (every search run before it): not measured.
+        r = C.evaluate(self.claim("first_over_warm_huge"), data.drop(columns="pages"))
+        self.assertEqual(r["verdict"], "not measured", r)
+
     def test_step_thread_claims(self):
         """beyond_scaling's claims: one thread over two with the split by
         interactions and phased updates; fluid over interactions on two."""

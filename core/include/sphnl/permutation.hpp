@@ -12,8 +12,9 @@ namespace sphnl {
 /// `threads` > 1 splits k into that many contiguous ranges, one OpenMP thread
 /// each: every dst[k] is written once whatever the split, so the result is
 /// the same bits.
-template <class T>
-void gather_by(std::span<const T> src, std::span<const std::uint32_t> order, std::vector<T>& dst, int threads = 1) {
+template <class T, class Alloc>
+void gather_by(std::span<const T> src, std::span<const std::uint32_t> order, std::vector<T, Alloc>& dst,
+               int threads = 1) {
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(order.size());
   dst.resize(order.size());
   T* d = dst.data();

@@ -49,6 +49,10 @@ class Search {
     /// OpenMP threads the search and rows() split the rows over (>= 1); the
     /// lists do not depend on it.
     int threads = 1;
+    /// Lists in memory advised as transparent huge pages (Linux): a first
+    /// build faults once per 2 MiB of lists instead of once per 4 KiB, which
+    /// on a virtual machine is most of a first call's time. Off: base pages.
+    bool huge_pages = true;
   };
 
   /// A search for neighbours closer than `radius`. Throws std::invalid_argument

@@ -49,7 +49,11 @@ NeighbourSearch::NeighbourSearch(const SearchOptions& options)
         GridderOptions g;
         g.max_parts_in_cell = options.max_parts_in_cell;  // no lattice: C sizes rows from the first build
         return make_gridder(options.gridder, g);
-      }()) {}
+      }()) {
+  use_huge_pages(xs_, options.huge_pages);
+  use_huge_pages(ys_, options.huge_pages);
+  use_huge_pages(zs_, options.huge_pages);
+}
 
 NeighbourSearch::~NeighbourSearch() = default;
 
@@ -104,23 +108,9 @@ void NeighbourSearch::build(std::span<const double> x, std::span<const double> y
     // Reordering: coordinates permuted into cell order; then only the first
     // particle of each cell needs to be known (§2.4).
     sort_.sort(*gridder_);
-    if (threads == 1) {
-      gather_by<double>(x, sort_.permutation(), xs_);
-      gather_by<double>(y, sort_.permutation(), ys_);
-      gather_by<double>(z, sort_.permutation(), zs_);
-    } else {
-      xs_.resize(n);
-      ys_.resize(n);
-      zs_.resize(n);
-      const std::uint32_t* perm = sort_.permutation().data();
-      const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(n);
-#pragma omp parallel for num_threads(threads) schedule(static)
-      for (std::ptrdiff_t k = 0; k < count; ++k) {
-        xs_[k] = x[perm[k]];
-        ys_[k] = y[perm[k]];
-        zs_[k] = z[perm[k]];
-      }
-    }
+    gather_by<double>(x, sort_.permutation(), xs_, threads);
+    gather_by<double>(y, sort_.permutation(), ys_, threads);
+    gather_by<double>(z, sort_.permutation(), zs_, threads);
   } else {
     const std::size_t room = 27 * std::size_t{gridder_->max_cell_count()} + kFilterSlack;
     gather_.resize(static_cast<std::size_t>(threads));
@@ -139,6 +129,8 @@ void NeighbourSearch::run(std::span<const double> x, std::span<const double> y, 
   Stopwatch sw;
   build(x, y, z, radius);
   times_.build = sw.lap();
+  use_huge_pages(out.point_, options_.huge_pages);
+  use_huge_pages(out.offsets_, options_.huge_pages);
   out.point_.resize(x.size());
   out.offsets_.resize(x.size() + 1);
   out.offsets_[0] = 0;
@@ -181,6 +173,7 @@ void NeighbourSearch::split_rows(NeighbourLists& out, Sweep&& sweep) {
     s.first_row = cell_start_[key_bounds_[t]];
     s.rows = cell_start_[key_bounds_[t + 1]] - s.first_row;
     s.base = 0;
+    s.entries.set_huge_pages(options_.huge_pages);
   }
   if (threads == 1) {
     const double start = omp_get_wtime();

@@ -45,6 +45,10 @@ struct SearchOptions {
   bool reorder = true;
   int max_parts_in_cell = 0;  // gridder C; 0 = twice the fullest cell
   int threads = 1;            // rows split over this many OpenMP threads
+  /// The lists, their row offsets and the coordinates in cell order on
+  /// transparent huge pages (uninit_buffer.hpp): a first call faults once
+  /// per 2 MiB of them instead of once per 4 KiB.
+  bool huge_pages = true;
 };
 
 /// Full neighbour lists in compressed-row form. Rows come in the order the
@@ -88,8 +92,8 @@ class NeighbourLists {
     while (segments_[k].first_row > r) --k;
     return segments_[k];
   }
-  std::vector<std::uint32_t> point_;
-  std::vector<std::uint64_t> offsets_;
+  BufferVector<std::uint32_t> point_;
+  BufferVector<std::uint64_t> offsets_;
   std::vector<Segment> segments_;  // kept between runs with their memory
   std::size_t num_segments_ = 1;
 };
@@ -147,7 +151,7 @@ class NeighbourSearch {
   // first point (in cell order) of every key; with reorder on, the
   // coordinates in cell order
   std::vector<std::uint32_t> cell_start_;
-  std::vector<double> xs_, ys_, zs_;
+  BufferVector<double> xs_, ys_, zs_;
   // reorder off: per thread, the 27 cells of one home cell, gathered
   std::vector<Gather> gather_;
   std::vector<std::uint32_t> key_bounds_;  // first key of every thread's range, and num_keys
