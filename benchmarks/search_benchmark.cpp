@@ -13,8 +13,10 @@
 // difference ends the benchmark with an error naming both implementations,
 // and nothing is reported.
 #include <malloc.h>
+#include <sys/resource.h>
 
 #include <cmath>
+#include <fstream>
 #include <map>
 #include <memory>
 #include <tuple>
@@ -84,6 +86,30 @@ const CloudCase& cloud_case(peers::CloudKind kind, peers::MemoryOrder order, lon
     slot = std::move(c);
   }
   return *slot;
+}
+
+/// Page faults so far: this process's (minor and major, getrusage), and the
+/// transparent huge pages the kernel has faulted in, system-wide
+/// (/proc/vmstat thp_fault_alloc; -1 where unreadable). Read around the timed
+/// call: a first call's faults are most of its cost, and their count tells a
+/// slow call that faulted more from one that waited on the same faults.
+struct FaultCount {
+  double process = 0, thp = -1;
+};
+
+FaultCount fault_count() {
+  FaultCount f;
+  rusage u{};
+  if (getrusage(RUSAGE_SELF, &u) == 0) f.process = static_cast<double>(u.ru_minflt + u.ru_majflt);
+  std::ifstream vmstat("/proc/vmstat");
+  std::string key;
+  double value = 0;
+  while (vmstat >> key >> value)
+    if (key == "thp_fault_alloc") {
+      f.thp = value;
+      break;
+    }
+  return f;
 }
 
 /// What one call of an implementation reports.
@@ -284,6 +310,7 @@ void register_search_benchmarks(const json& sweep) {
           check();
         }
         CallResult r;
+        FaultCount faults;
         for (auto _ : st) {
           // call: first stands in for the first call of a fresh process: the
           // last call's objects freed, every free page the allocator holds
@@ -294,7 +321,11 @@ void register_search_benchmarks(const json& sweep) {
             runner->release();
             malloc_trim(0);
           }
+          const FaultCount before = fault_count();
           r = runner->call(first);
+          const FaultCount after = fault_count();
+          faults.process = after.process - before.process;
+          faults.thp = before.thp >= 0 && after.thp >= 0 ? after.thp - before.thp : -1;
         }
         if (first) check();  // the lists just timed, before anything is reported
         st.counters["n_particles"] = static_cast<double>(cc.cloud.size());
@@ -308,6 +339,8 @@ void register_search_benchmarks(const json& sweep) {
           st.counters["search_busy_fraction"] = r.sweep_busy_fraction;
         }
         st.counters["bytes"] = r.bytes;
+        st.counters["page_faults"] = faults.process;
+        if (faults.thp >= 0) st.counters["thp_faults"] = faults.thp;
         st.counters["run_sequence"] = static_cast<double>(sequence);
       });
     })->Unit(benchmark::kMillisecond)->UseRealTime();

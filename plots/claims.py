@@ -541,13 +541,19 @@ def _call_seconds(med, n, threads, call, pages):
 
 def _first_call_ratio(med, c, slow, fast):
     """Seconds of the (call, pages) `slow` over `fast`, one thread; related,
-    the same on two threads."""
+    the same on two threads, and, where the two differ in pages, the same
+    ratio on warm calls (what huge pages do beyond the faults: the TLB)."""
     n, note = _at(med, c)
     related = {}
-    try:
-        related["two_threads"] = _call_seconds(med, n, 2, *slow) / _call_seconds(med, n, 2, *fast)
-    except NotMeasured:
-        pass
+    pairs = {"two_threads": (2, slow, fast)}
+    if slow[1] != fast[1]:
+        pairs["warm_one_thread"] = (1, ("warm", slow[1]), ("warm", fast[1]))
+        pairs["warm_two_threads"] = (2, ("warm", slow[1]), ("warm", fast[1]))
+    for name, (threads, a, b) in pairs.items():
+        try:
+            related[name] = _call_seconds(med, n, threads, *a) / _call_seconds(med, n, threads, *b)
+        except NotMeasured:
+            pass
     return (_call_seconds(med, n, 1, *slow) / _call_seconds(med, n, 1, *fast),
             note.replace("(paper: ", "(claim read at ") + ", one thread", related)
 

@@ -864,6 +864,7 @@ class TestClaims(unittest.TestCase):
         self.assertAlmostEqual(r["value"], 5.0, places=6)
         self.assertEqual(r["verdict"], "reproduced", r)
         self.assertAlmostEqual(r["related"]["two_threads"]["value"], 5.0, places=6)
+        self.assertAlmostEqual(r["related"]["warm_one_thread"]["value"], 1.0, places=6)
         r = C.evaluate(self.claim("first_over_warm_huge"), data)
         self.assertAlmostEqual(r["value"], 1.3, places=6)
         self.assertEqual(r["verdict"], "reproduced", r)
