@@ -813,22 +813,32 @@ class TestClaims(unittest.TestCase):
         self.assertEqual(r["verdict"], "partly", r)
         self.assertIn("150 000", r["note"])
 
+    @staticmethod
+    def search_rows(experiment, seconds):
+        """Three rounds of synthetic `search` rows on the 10^6 lattice:
+        seconds maps (threads, ((axis, value), ...)) to s_call; axes not
+        given are impl sphnl, call warm."""
+        rows = []
+        for rep in range(3):
+            for (threads, axes), t in seconds.items():
+                row = {"experiment": experiment, "family": "search", "particles": 1000000, "gridder": "B",
+                       "cell_order": "sort_x", "reorder": 1, "threads": threads, "impl": "sphnl",
+                       "cloud": "lattice", "memory_order": "generated", "call": "warm",
+                       "repetition_index": rep, "round": rep, "error_occurred": False, "error_message": "",
+                       "n_particles": 1000000, "s_call": t * (1 + 0.001 * rep)}
+                row.update(dict(axes))
+                row["run_name"] = "search/" + "/".join(str(v) for _, v in axes) + f"/{threads}"
+                rows.append(row)
+        return pd.DataFrame(rows)
+
     def test_api_and_search_thread_claims(self):
         """search_api's claims: the API's seconds per call over the engine's
         (one thread), and the engine's speed-up from one thread to two, read
         from s_call at N = 1 000 000."""
         seconds = {("sphnl", 1): 0.20, ("sphnl", 2): 0.11, ("api_visit", 1): 0.204, ("api_visit", 2): 0.114,
                    ("api", 1): 0.60, ("api", 2): 0.34}
-        rows = []
-        for rep in range(3):
-            for (impl, threads), t in seconds.items():
-                rows.append({"experiment": "search_api", "family": "search", "particles": 1000000, "gridder": "B",
-                             "cell_order": "sort_x", "reorder": 1, "threads": threads, "impl": impl,
-                             "cloud": "lattice", "memory_order": "generated", "call": "warm",
-                             "repetition_index": rep, "round": rep, "error_occurred": False, "error_message": "",
-                             "run_name": f"search/{impl}/{threads}", "n_particles": 1000000,
-                             "s_call": t * (1 + 0.001 * rep)})
-        data = pd.DataFrame(rows)
+        data = self.search_rows("search_api", {(threads, (("impl", impl),)): t
+                                               for (impl, threads), t in seconds.items()})
         r = C.evaluate(self.claim("api_visit_over_engine"), data)
         self.assertAlmostEqual(r["value"], 1.02, places=6)
         self.assertEqual(r["verdict"], "reproduced", r)
@@ -850,16 +860,8 @@ class TestClaims(unittest.TestCase):
         seconds = {("first", "base", 1): 1.30, ("first", "huge", 1): 0.26, ("warm", "huge", 1): 0.20,
                    ("warm", "base", 1): 0.20, ("first", "base", 2): 0.80, ("first", "huge", 2): 0.16,
                    ("warm", "huge", 2): 0.11, ("warm", "base", 2): 0.11}
-        rows = []
-        for rep in range(3):
-            for (call, pages, threads), t in seconds.items():
-                rows.append({"experiment": "first_call", "family": "search", "particles": 1000000, "gridder": "B",
-                             "cell_order": "sort_x", "reorder": 1, "threads": threads, "impl": "sphnl",
-                             "cloud": "lattice", "memory_order": "generated", "call": call, "pages": pages,
-                             "repetition_index": rep, "round": rep, "error_occurred": False, "error_message": "",
-                             "run_name": f"search/{call}/{pages}/{threads}", "n_particles": 1000000,
-                             "s_call": t * (1 + 0.001 * rep)})
-        data = pd.DataFrame(rows)
+        data = self.search_rows("first_call", {(threads, (("call", call), ("pages", pages))): t
+                                               for (call, pages, threads), t in seconds.items()})
         r = C.evaluate(self.claim("first_call_huge_over_base"), data)
         self.assertAlmostEqual(r["value"], 5.0, places=6)
         self.assertEqual(r["verdict"], "reproduced", r)
