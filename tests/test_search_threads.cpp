@@ -137,7 +137,10 @@ TEST(HugePages, LargeBuffersAreAlignedToWholeHugePages) {
     EXPECT_EQ(reinterpret_cast<std::uintptr_t>(p) % alignof(std::max_align_t), 0u);
     std::free(p);
   }
+  // Sizes no object can have are refused before an allocator sees them (so
+  // also under AddressSanitizer, which aborts on them).
   EXPECT_THROW(allocate_buffer(~std::size_t{0} / 2, true), std::bad_alloc);
+  EXPECT_THROW(allocate_buffer(~std::size_t{0} - 1, false), std::bad_alloc);
 }
 
 TEST(HugePages, BufferVectorSwitchesItsPagesAndKeepsItsValues) {

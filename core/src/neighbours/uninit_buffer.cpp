@@ -1,5 +1,8 @@
 #include "sphnl/neighbours/uninit_buffer.hpp"
 
+#include <cstddef>
+#include <limits>
+
 #if defined(__linux__)
 #include <sys/mman.h>
 #endif
@@ -7,6 +10,11 @@
 namespace sphnl {
 
 void* allocate_buffer(std::size_t bytes, bool huge_pages) {
+  // No object may exceed PTRDIFF_MAX bytes, and rounding up to whole huge
+  // pages must not wrap around: such a size is refused before any allocator
+  // sees it.
+  if (bytes > static_cast<std::size_t>(std::numeric_limits<std::ptrdiff_t>::max()) - kHugePageBytes)
+    throw std::bad_alloc();
   if (bytes == 0) bytes = 1;
   if (!huge_pages || bytes < kHugePageMinBytes) {
     void* p = std::malloc(bytes);
