@@ -542,7 +542,7 @@ def _call_seconds(med, n, threads, call, pages):
 def _first_call_ratio(med, c, slow, fast):
     """Seconds of the (call, pages) `slow` over `fast`, one thread; related,
     the same on two threads, and, where the two differ in pages, the same
-    ratio on warm calls (what huge pages do beyond the faults: the TLB)."""
+    ratio on warm calls (what huge pages change besides the faults)."""
     n, note = _at(med, c)
     related = {}
     pairs = {"two_threads": (2, slow, fast)}
