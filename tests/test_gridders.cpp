@@ -70,6 +70,45 @@ TEST(Gridders, AllFourHoldTheSameCellsInTheSameOrder) {
   }
 }
 
+// Gridder B split over threads: the same CellsBegin and PartsSorted (each cell
+// in increasing index) as on one thread, for scattered and sorted keys, out
+// particles and more threads than the size allows.
+TEST(Gridders, PreconditionedVectorSplitOverThreadsBuildsTheSameCells) {
+  std::mt19937 rng(11);
+  const std::uint32_t num_keys = 5003;
+  std::uniform_int_distribution<std::uint32_t> cell(0, num_keys - 1);
+  std::vector<std::uint32_t> keys(200000);
+  for (auto& k : keys) k = cell(rng);
+  for (std::size_t i = 0; i < keys.size(); i += 997) keys[i] = kNoCell;
+  std::vector<std::uint32_t> sorted_keys = keys;
+  std::sort(sorted_keys.begin(), sorted_keys.end());
+  for (const auto* key_set : {&keys, &sorted_keys}) {
+    PreconditionedVector one;
+    one.build(*key_set, num_keys);
+    std::vector<std::uint32_t> perm_one, perm_many;
+    one.cell_order_permutation(perm_one);
+    // Counting the keys gives the same CellsBegin.
+    std::vector<std::uint32_t> counted(num_keys + 1, 0);
+    for (const std::uint32_t k : *key_set)
+      if (k != kNoCell) ++counted[k + 1];
+    for (std::uint32_t k = 0; k < num_keys; ++k) counted[k + 1] += counted[k];
+    EXPECT_TRUE(std::ranges::equal(one.cells_begin(), counted));
+    for (int threads : {2, 3, 4, 64}) {
+      PreconditionedVector many;
+      many.set_threads(threads);
+      many.build(*key_set, num_keys);
+      EXPECT_TRUE(std::ranges::equal(many.cells_begin(), one.cells_begin())) << threads;
+      EXPECT_EQ(many.max_cell_count(), one.max_cell_count()) << threads;
+      many.cell_order_permutation(perm_many);
+      EXPECT_EQ(perm_many, perm_one) << threads;
+      for (std::uint32_t k = 0; k < num_keys; k += 101) {
+        const auto a = one.cell_members(k, nullptr), b = many.cell_members(k, nullptr);
+        EXPECT_TRUE(std::ranges::equal(a, b)) << threads << ": cell " << k;
+      }
+    }
+  }
+}
+
 TEST(Gridders, StaticMatrixOverflowStopsWithTheCellAndTheOption) {
   GridderOptions opt;
   opt.max_parts_in_cell = 3;

@@ -7,6 +7,9 @@
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <limits>
+#include <stdexcept>
+#include <string>
 #include <random>
 #include <vector>
 
@@ -68,6 +71,66 @@ TEST(SearchThreads, EngineRowsAreThoseOfOneThread) {
                                          << reorder << " threads " << threads;
           }
         }
+}
+
+// Clouds large enough that the build splits over threads too (bounding box,
+// gridder B's counting sort): the rows stay those of one thread.
+TEST(SearchThreads, SplitBuildGivesTheRowsOfOneThread) {
+  const peers::Cloud cloud = peers::make_cloud(peers::CloudKind::random, peers::MemoryOrder::shuffled, 140000);
+  for (GridderKind g : {GridderKind::B, GridderKind::D})
+    for (bool reorder : {false, true}) {
+      SearchOptions so{g, CellOrderKind::sort_x, reorder, 0, 1};
+      ParticleSet ps;
+      ps.resize(cloud.size());
+      for (std::size_t i = 0; i < cloud.size(); ++i) {
+        ps.x[i] = cloud.x[i];
+        ps.y[i] = cloud.y[i];
+        ps.z[i] = cloud.z[i];
+      }
+      const double radius = 2.6;  // unit density: about 74 neighbours
+      const EngineRows one = engine_rows(ps, radius, so);
+      for (int threads : {2, 4}) {
+        so.threads = threads;
+        const EngineRows many = engine_rows(ps, radius, so);
+        EXPECT_EQ(many.point, one.point) << to_string(g) << " reorder " << reorder << " threads " << threads;
+        EXPECT_TRUE(many.row == one.row) << to_string(g) << " reorder " << reorder << " threads " << threads;
+      }
+    }
+}
+
+// A non-finite coordinate anywhere in a cloud split over threads is found,
+// and the message names the first such point.
+TEST(SearchThreads, SplitBoundingBoxNamesTheFirstNonFinitePoint) {
+  const std::size_t n = 300000;
+  std::vector<double> x(n), y(n), z(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    x[i] = static_cast<double>(i % 67);
+    y[i] = static_cast<double>((i / 67) % 67);
+    z[i] = static_cast<double>(i / (67 * 67));
+  }
+  const auto message = [&](int threads) {
+    SearchOptions so{GridderKind::B, CellOrderKind::sort_x, true, 0, threads};
+    NeighbourSearch search(so);
+    NeighbourLists lists;
+    try {
+      search.run(x, y, z, 1.5, lists);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no exception");
+  };
+  for (int threads : {1, 2, 3}) {
+    y[250001] = std::numeric_limits<double>::quiet_NaN();
+    EXPECT_NE(message(threads).find("point 250001 has a non-finite"), std::string::npos) << threads;
+    x[160000] = -std::numeric_limits<double>::infinity();
+    EXPECT_NE(message(threads).find("point 160000 has a non-finite"), std::string::npos) << threads;
+    z[n - 1] = std::numeric_limits<double>::infinity();
+    x[160000] = 1;
+    y[250001] = 1;
+    EXPECT_NE(message(threads).find("point " + std::to_string(n - 1) + " has"), std::string::npos) << threads;
+    z[n - 1] = 1;
+    EXPECT_EQ(message(threads), "no exception") << threads;
+  }
 }
 
 // The sweep times are parts of the search time: the longest sweep lies

@@ -107,6 +107,9 @@ def counts(output):
 def run_unit(unit):
     t0 = time.monotonic()
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(TESTS), os.environ.get("PYTHONPATH")]))}
+    # Several classes run at once, some starting 2-thread binaries: spinning
+    # OpenMP waits on shared cores stall them (the CMake tests do the same).
+    env.setdefault("OMP_WAIT_POLICY", "passive")
     p = subprocess.run([sys.executable, "-m", "unittest", "-v", unit],
                        cwd=ROOT, env=env, capture_output=True, text=True, stdin=subprocess.DEVNULL)
     return unit, p.returncode, p.stdout + p.stderr, time.monotonic() - t0

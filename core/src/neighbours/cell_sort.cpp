@@ -78,7 +78,12 @@ void CellSort::sort(const Gridder& gridder, std::size_t owned) {
   permutation_.insert(permutation_.end(), ghosts_.begin(), ghosts_.end());
 }
 
-void CellSort::cell_starts(std::uint32_t num_keys, std::vector<std::uint32_t>& start) const {
+void CellSort::cell_starts(const Gridder& gridder, std::uint32_t num_keys, std::vector<std::uint32_t>& start) const {
+  const std::span<const std::uint32_t> begin = gridder.cells_begin();
+  if (begin.size() == std::size_t{num_keys} + 1) {
+    start.assign(begin.begin(), begin.end());
+    return;
+  }
   // Count per key, shifted by one, then a running sum.
   start.assign(std::size_t{num_keys} + 1, 0);
   for (const std::uint32_t key : keys_)

@@ -3,9 +3,11 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <cmath>
 #include <exception>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "sphnl/neighbours/pair_filter.hpp"
 #include "sphnl/neighbours/stencil.hpp"
@@ -19,6 +21,59 @@ namespace {
 struct Range {
   std::uint32_t begin, end;
 };
+
+struct Extent {
+  double lo, hi;
+  bool finite;
+};
+
+/// Smallest and largest of a[0, n) (n > 0), and whether all are finite. The
+/// simd reductions let the compiler keep vector lanes of minima, maxima and
+/// v * 0 (NaN for an infinite or NaN v), which a plain loop with a branch per
+/// point does not (2.5 ms for 10^6 points of three coordinates, 1 ms so).
+Extent extent(const double* a, std::size_t n) {
+  double lo = a[0], hi = a[0], nan_if_bad = 0;
+#pragma omp simd reduction(min : lo) reduction(max : hi) reduction(+ : nan_if_bad)
+  for (std::size_t i = 0; i < n; ++i) {
+    const double v = a[i];
+    lo = v < lo ? v : lo;
+    hi = v > hi ? v : hi;
+    nan_if_bad += v * 0.0;
+  }
+  return {lo, hi, nan_if_bad == 0};
+}
+
+/// The box of the points, split over `threads` threads for large clouds;
+/// throws std::invalid_argument naming the first point with a non-finite
+/// coordinate. An empty cloud has the box {0, 0}.
+Box bounding_box(std::span<const double> x, std::span<const double> y, std::span<const double> z, int threads) {
+  const std::size_t n = x.size();
+  Box box{{0, 0, 0}, {0, 0, 0}};
+  if (n == 0) return box;
+  constexpr std::size_t kMinPerThread = 65536;
+  const int team = static_cast<int>(std::clamp<std::size_t>(n / kMinPerThread, 1, static_cast<std::size_t>(threads)));
+  const double* coords[3] = {x.data(), y.data(), z.data()};
+  std::vector<Extent> part(static_cast<std::size_t>(team) * 3);
+#pragma omp parallel for num_threads(team) schedule(static) if (team > 1)
+  for (int t = 0; t < team; ++t) {
+    const std::size_t b = n * static_cast<std::size_t>(t) / static_cast<std::size_t>(team);
+    const std::size_t e = n * static_cast<std::size_t>(t + 1) / static_cast<std::size_t>(team);
+    for (int d = 0; d < 3; ++d) part[static_cast<std::size_t>(t) * 3 + d] = extent(coords[d] + b, e - b);
+  }
+  bool finite = true;
+  for (int d = 0; d < 3; ++d) box.lo[d] = box.hi[d] = coords[d][0];
+  for (std::size_t k = 0; k < part.size(); ++k) {
+    const Extent& p = part[k];
+    box.lo[k % 3] = std::min(box.lo[k % 3], p.lo);
+    box.hi[k % 3] = std::max(box.hi[k % 3], p.hi);
+    finite = finite && p.finite;
+  }
+  if (!finite)
+    for (std::size_t i = 0; i < n; ++i)
+      if (!std::isfinite(x[i]) || !std::isfinite(y[i]) || !std::isfinite(z[i]))
+        throw std::invalid_argument("NeighbourSearch: point " + std::to_string(i) + " has a non-finite coordinate");
+  return box;
+}
 
 }  // namespace
 
@@ -50,6 +105,7 @@ NeighbourSearch::NeighbourSearch(const SearchOptions& options)
         g.max_parts_in_cell = options.max_parts_in_cell;  // no lattice: C sizes rows from the first build
         return make_gridder(options.gridder, g);
       }()) {
+  gridder_->set_threads(options.threads);
   use_huge_pages(xs_, options.huge_pages);
   use_huge_pages(ys_, options.huge_pages);
   use_huge_pages(zs_, options.huge_pages);
@@ -73,21 +129,10 @@ void NeighbourSearch::build(std::span<const double> x, std::span<const double> y
   if (n >= 0xFFFFFFFFu) throw std::invalid_argument("NeighbourSearch: more than 2^32 - 2 points");
   if (!(radius > 0) || !std::isfinite(radius))
     throw std::invalid_argument("NeighbourSearch: radius must be a positive finite number, got " + std::to_string(radius));
-  Box box{{0, 0, 0}, {0, 0, 0}};
+  const int threads = std::max(1, options_.threads);
+  const Box box = bounding_box(x, y, z, threads);
   double max_abs = 0;
-  if (n > 0) {
-    for (int d = 0; d < 3; ++d) box.lo[d] = box.hi[d] = (d == 0 ? x : d == 1 ? y : z)[0];
-    for (std::size_t i = 0; i < n; ++i) {
-      const double p[3] = {x[i], y[i], z[i]};
-      for (int d = 0; d < 3; ++d) {
-        if (!std::isfinite(p[d]))
-          throw std::invalid_argument("NeighbourSearch: point " + std::to_string(i) + " has a non-finite coordinate");
-        box.lo[d] = std::min(box.lo[d], p[d]);
-        box.hi[d] = std::max(box.hi[d], p[d]);
-      }
-    }
-    for (int d = 0; d < 3; ++d) max_abs = std::max({max_abs, std::fabs(box.lo[d]), std::fabs(box.hi[d])});
-  }
+  for (int d = 0; d < 3; ++d) max_abs = std::max({max_abs, std::fabs(box.lo[d]), std::fabs(box.hi[d])});
   // Cells of side R, widened by the round-off of the cell coordinate so a
   // pair the distance test accepts is never two cells apart, and enlarged
   // (still correct, more candidates) when a sparse cloud would need far more
@@ -101,9 +146,8 @@ void NeighbourSearch::build(std::span<const double> x, std::span<const double> y
   fit_grid(request, grid_, *order_);
 
   // Cell index of every point (§2.4), then particles in cells (§2.3).
-  const int threads = std::max(1, options_.threads);
   sort_.place(grid_, *order_, *gridder_, x, y, z, nullptr, threads);
-  sort_.cell_starts(order_->num_keys(), cell_start_);
+  sort_.cell_starts(*gridder_, order_->num_keys(), cell_start_);
   if (options_.reorder) {
     // Reordering: coordinates permuted into cell order; then only the first
     // particle of each cell needs to be known (§2.4).

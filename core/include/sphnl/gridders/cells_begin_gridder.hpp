@@ -22,6 +22,11 @@ class CellsBeginGridder : public Gridder {
     return {parts_sorted_.data() + cells_begin_[key], cells_begin_[key + 1] - cells_begin_[key]};
   }
 
+  std::span<const std::uint32_t> cells_begin() const override {
+    if (cells_begin_.empty()) return {};
+    return {cells_begin_.data(), std::size_t{num_keys_} + 1};
+  }
+
   void cell_order_permutation(std::vector<std::uint32_t>& order) const override {
     order.assign(parts_sorted_.begin(), parts_sorted_.begin() + stored_);
   }

@@ -31,6 +31,14 @@ class Gridder {
   virtual std::span<const std::uint32_t> cell_members(std::uint32_t key, std::uint32_t* scratch) const {
     return {scratch, gather_cell(key, scratch)};
   }
+  /// CellsBegin where the gridder keeps one (A, B: the first slot of each
+  /// cell in cell-key order, num_keys + 1 entries, which is also where each
+  /// cell's particles start after reordering); empty for C and D.
+  virtual std::span<const std::uint32_t> cells_begin() const { return {}; }
+  /// Threads a build may use (gridder B splits its counting and placing
+  /// passes; the others build on one). Every count gives the same cells,
+  /// each in increasing particle index.
+  void set_threads(int threads) { threads_ = threads < 1 ? 1 : threads; }
   /// Largest number of particles in one cell after the last build.
   std::uint32_t max_cell_count() const { return max_cell_count_; }
   /// Every gridded particle, in cell-key order (the reordering permutation).
@@ -45,6 +53,7 @@ class Gridder {
  protected:
   std::uint32_t num_keys_ = 0;
   std::uint32_t max_cell_count_ = 0;
+  int threads_ = 1;
 };
 
 struct GridderOptions {

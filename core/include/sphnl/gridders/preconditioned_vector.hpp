@@ -2,10 +2,15 @@
 // Gridder B, "preconditioned dynamic vector" (paper §2.3): count the particles
 // of every cell first, prefix-sum the counts into CellsBegin, then place each
 // particle straight into its slot of PartsSorted — no shifting.
-#include <algorithm>
+//
+// With set_threads(T > 1) both passes are split: thread t counts and places
+// its own contiguous range of particles, and its slots in each cell come
+// after those of threads before it, so PartsSorted is the same as on one
+// thread (each cell in increasing particle index).
+#include <cstddef>
+#include <vector>
 
 #include "sphnl/gridders/cells_begin_gridder.hpp"
-#include "sphnl/orderings/cell_order.hpp"
 
 namespace sphnl {
 
@@ -13,33 +18,23 @@ class PreconditionedVector final : public CellsBeginGridder {
  public:
   const char* name() const override { return "B"; }
 
-  void build(std::span<const std::uint32_t> cell_key, std::uint32_t num_keys) override {
-    num_keys_ = num_keys;
-    const std::size_t n = cell_key.size();
-    cells_begin_.assign(std::size_t{num_keys} + 1, 0);
-    // Pass 1: particles per cell (the "extra arrays" that precondition the vector).
-    for (std::size_t i = 0; i < n; ++i)
-      if (cell_key[i] != kNoCell) ++cells_begin_[cell_key[i] + 1];
-    std::uint32_t max_count = 0;
-    for (std::uint32_t k = 0; k < num_keys; ++k) {
-      max_count = std::max(max_count, cells_begin_[k + 1]);
-      cells_begin_[k + 1] += cells_begin_[k];
-    }
-    max_cell_count_ = max_count;
-    // Pass 2: place particles; `cursor_` is where the next particle of a cell goes.
-    cursor_.assign(cells_begin_.begin(), cells_begin_.end() - 1);
-    parts_sorted_.resize(cells_begin_[num_keys]);
-    for (std::size_t i = 0; i < n; ++i)
-      if (cell_key[i] != kNoCell) parts_sorted_[cursor_[cell_key[i]]++] = static_cast<std::uint32_t>(i);
-    stored_ = cells_begin_[num_keys];
-  }
+  void build(std::span<const std::uint32_t> cell_key, std::uint32_t num_keys) override;
 
   std::size_t bytes() const override {
     return CellsBeginGridder::bytes() + cursor_.capacity() * sizeof(std::uint32_t);
   }
 
+  /// Fewer particles than this per thread are counted on one: below it the
+  /// threads' start-up and per-thread counts cost more than they save.
+  static constexpr std::size_t kMinParticlesPerThread = 32768;
+
  private:
-  std::vector<std::uint32_t> cursor_;        // next free slot per cell while placing
+  void build_serial(std::span<const std::uint32_t> cell_key);
+  void build_parallel(std::span<const std::uint32_t> cell_key, int threads);
+
+  // Next free slot per cell while placing; with T threads, T rows of
+  // num_keys (thread t's next slot in each cell).
+  std::vector<std::uint32_t> cursor_;
 };
 
 }  // namespace sphnl

@@ -62,8 +62,9 @@ class CellSort {
   void sort(const Gridder& gridder, std::size_t owned = ~std::size_t{0});
   /// After place(): start[k] = the points of keys below k (the first point of
   /// key k in cell order), for every key and one past the last (num_keys + 1
-  /// entries; out points are not counted).
-  void cell_starts(std::uint32_t num_keys, std::vector<std::uint32_t>& start) const;
+  /// entries; out points are not counted). Copied from the gridder's
+  /// CellsBegin where it keeps one (A, B), counted from the keys otherwise.
+  void cell_starts(const Gridder& gridder, std::uint32_t num_keys, std::vector<std::uint32_t>& start) const;
   /// After sort(): keys() put into cell order (for a caller that permuted its
   /// own arrays and keeps the keys beside them).
   void permute_keys();

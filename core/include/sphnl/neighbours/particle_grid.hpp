@@ -33,8 +33,12 @@ class ParticleGrid {
   bool build(ParticleSet& ps, double cell_size, bool reorder, std::size_t owned = kAllOwned);
   /// Threads of the next builds: the cell keys of the particles and the
   /// permutation of their arrays are split over them (the same keys, order
-  /// and bits for any count); the gridder's counting sort stays serial.
-  void set_threads(int threads) { threads_ = threads < 1 ? 1 : threads; }
+  /// and bits for any count), and so is gridder B's counting sort (the same
+  /// cells); the other gridders build on one thread.
+  void set_threads(int threads) {
+    threads_ = threads < 1 ? 1 : threads;
+    gridder_->set_threads(threads_);
+  }
   static constexpr std::size_t kAllOwned = ~std::size_t{0};
   /// First ghost index of the last build ([ghost_begin, size) are ghosts, in
   /// cells of other ranks), or CellSweep::kNoGhosts for a serial run: the
