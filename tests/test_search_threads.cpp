@@ -6,6 +6,7 @@
 // not what they hold.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <limits>
 #include <stdexcept>
@@ -186,20 +187,39 @@ TEST(SearchThreads, PublicApiRowsDoNotDependOnThreads) {
   }
 }
 
-TEST(HugePages, LargeBuffersAreAlignedToWholeHugePages) {
-  for (std::size_t bytes : {kHugePageMinBytes, kHugePageMinBytes + 12345, 3 * kHugePageBytes + 1}) {
+TEST(HugePages, LargeBuffersStartAtStaggeredOffsetsInHugePages) {
+  // Held at once, as a search holds its coordinate arrays: each starts on a
+  // cache line, at one of the staggered offsets into a huge page, and no two
+  // of kHugePageColours consecutive ones at the same offset.
+  std::vector<void*> held;
+  std::vector<std::uintptr_t> offsets;
+  for (std::size_t k = 0; k < kHugePageColours; ++k) {
+    const std::size_t bytes = k % 2 ? kHugePageMinBytes : 3 * kHugePageBytes + 1;
     void* p = allocate_buffer(bytes, true);
-    EXPECT_EQ(reinterpret_cast<std::uintptr_t>(p) % kHugePageBytes, 0u) << bytes;
+    const std::uintptr_t at = reinterpret_cast<std::uintptr_t>(p);
+    EXPECT_EQ(at % kBufferAlignment, 0u) << k;
+    const std::uintptr_t offset = at % kHugePageBytes;
+    EXPECT_EQ(offset % kHugePageColourStep, 0u) << k;
+    EXPECT_GE(offset, kHugePageColourStep) << k;
+    EXPECT_LE(offset, kHugePageColours * kHugePageColourStep) << k;
+    EXPECT_EQ(std::count(offsets.begin(), offsets.end(), offset), 0) << k;
+    offsets.push_back(offset);
+    static_cast<unsigned char*>(p)[0] = 1;
     static_cast<unsigned char*>(p)[bytes - 1] = 1;  // the whole size is writable
-    std::free(p);
+    held.push_back(p);
   }
-  // Small buffers and huge_pages off: plain malloc alignment, usable memory.
-  for (bool huge : {false, true}) {
-    void* p = allocate_buffer(1000, huge);
-    ASSERT_NE(p, nullptr);
-    EXPECT_EQ(reinterpret_cast<std::uintptr_t>(p) % alignof(std::max_align_t), 0u);
-    std::free(p);
-  }
+  for (void* p : held) free_buffer(p);
+  free_buffer(nullptr);  // nothing to free
+  // Small buffers and huge_pages off: cache-line aligned, usable memory.
+  for (bool huge : {false, true})
+    for (std::size_t bytes : {std::size_t{0}, std::size_t{1000}, kHugePageMinBytes}) {
+      if (huge && bytes == kHugePageMinBytes) continue;
+      void* p = allocate_buffer(bytes, huge);
+      ASSERT_NE(p, nullptr);
+      EXPECT_EQ(reinterpret_cast<std::uintptr_t>(p) % kBufferAlignment, 0u) << bytes;
+      if (bytes) static_cast<unsigned char*>(p)[bytes - 1] = 1;
+      free_buffer(p);
+    }
   // Sizes no object can have are refused before an allocator sees them (so
   // also under AddressSanitizer, which aborts on them).
   EXPECT_THROW(allocate_buffer(~std::size_t{0} / 2, true), std::bad_alloc);
@@ -216,7 +236,7 @@ TEST(HugePages, BufferVectorSwitchesItsPagesAndKeepsItsValues) {
   EXPECT_TRUE(v.empty());
   EXPECT_TRUE(v.get_allocator().huge_pages);
   v.resize(kHugePageMinBytes / sizeof(std::uint64_t));
-  EXPECT_EQ(reinterpret_cast<std::uintptr_t>(v.data()) % kHugePageBytes, 0u);
+  EXPECT_EQ(reinterpret_cast<std::uintptr_t>(v.data()) % kHugePageBytes % kHugePageColourStep, 0u);
   for (std::size_t k = 0; k < v.size(); ++k) v[k] = k;
   v.push_back(1);  // growth copies the values into the new buffer
   for (std::size_t k = 0; k + 1 < v.size(); ++k) ASSERT_EQ(v[k], k);

@@ -7,7 +7,7 @@
 // Huge pages (set_huge_pages): a first call writes hundreds of MB of lists
 // into fresh memory, and on a virtual machine each 4 KiB page's first-touch
 // fault costs ~10 µs, more than writing the page. With huge pages on, a
-// buffer of at least kHugePageMinBytes is aligned to 2 MiB and advised as
+// buffer of at least kHugePageMinBytes lies in whole 2 MiB pages advised as
 // transparent huge pages (Linux, THP in `madvise` or `always` mode), so it
 // faults once per 2 MiB. Where the kernel declines (THP `never`, other
 // systems), the buffer is the same memory with base pages.
@@ -27,18 +27,33 @@ inline constexpr std::size_t kHugePageBytes = std::size_t{2} << 20;
 /// Smaller buffers keep base pages: rounding them up to 2 MiB would waste more
 /// than their faults cost.
 inline constexpr std::size_t kHugePageMinBytes = std::size_t{4} << 20;
+/// Every buffer starts on a cache line.
+inline constexpr std::size_t kBufferAlignment = 64;
+/// A huge-page buffer does not start at its huge page's first byte but
+/// 1..kHugePageColours steps of kHugePageColourStep (8 KiB and one cache
+/// line) into it, in turn. Buffers that all start at 2 MiB boundaries share
+/// their low 21 address bits: element i of the x, y and z coordinates and of
+/// the row offsets then falls on the same cache sets, and a warm search of
+/// 10^6 points ran 10-14 % slower on huge pages than on base pages on one
+/// machine (Intel Xeon, model 207); started at staggered offsets, as fast
+/// (docs/FINDINGS.md, "Peers and threads").
+inline constexpr std::size_t kHugePageColourStep = 8192 + kBufferAlignment;
+inline constexpr std::size_t kHugePageColours = 16;
 
-/// `bytes` of uninitialised memory for std::free; with `huge_pages` and at
-/// least kHugePageMinBytes, 2 MiB aligned, rounded up to whole huge pages and
-/// advised as such. Throws std::bad_alloc.
+/// `bytes` of uninitialised memory, 64-byte aligned, for free_buffer; with
+/// `huge_pages` and at least kHugePageMinBytes, inside whole 2 MiB pages
+/// advised as huge, starting at a staggered offset (kHugePageColourStep).
+/// Throws std::bad_alloc.
 void* allocate_buffer(std::size_t bytes, bool huge_pages);
+/// Frees what allocate_buffer returned (nullptr: nothing).
+void free_buffer(void* buffer) noexcept;
 
 /// std::vector's allocator for the large arrays of a search (coordinates in
 /// cell order, row offsets): memory from allocate_buffer, on huge pages when
 /// asked, and elements default-initialised, so resize() does not zero what
 /// is overwritten anyway (a second touch of every page). Any instance frees
-/// any other's memory (std::free), so all compare equal; the flag travels
-/// with moves and swaps.
+/// any other's memory (free_buffer needs no flag), so all compare equal; the
+/// flag travels with moves and swaps.
 template <class T>
 struct BufferAllocator {
   static_assert(std::is_trivially_copyable_v<T> && alignof(T) <= alignof(std::max_align_t));
@@ -55,7 +70,7 @@ struct BufferAllocator {
   BufferAllocator(const BufferAllocator<U>& other) : huge_pages(other.huge_pages) {}
 
   T* allocate(std::size_t n) { return static_cast<T*>(allocate_buffer(n * sizeof(T), huge_pages)); }
-  void deallocate(T* p, std::size_t) { std::free(p); }
+  void deallocate(T* p, std::size_t) { free_buffer(p); }
   template <class U>
   void construct(U* p) {
     ::new (static_cast<void*>(p)) U;  // default-initialised: no zeroing
@@ -104,7 +119,7 @@ class UninitBuffer {
 
  private:
   struct Free {
-    void operator()(T* p) const { std::free(p); }
+    void operator()(T* p) const { free_buffer(p); }
   };
   std::unique_ptr<T, Free> p_;
   std::size_t capacity_ = 0;
