@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "peers/clouds.hpp"
+#include "sphnl/neighbours/coordinate_extent.hpp"
 #include "sphnl/neighbours/neighbour_search.hpp"
 #include "sphnl/neighbours/uninit_buffer.hpp"
 #include "sphnl/search.hpp"
@@ -97,6 +98,31 @@ TEST(SearchThreads, SplitBuildGivesTheRowsOfOneThread) {
         EXPECT_TRUE(many.row == one.row) << to_string(g) << " reorder " << reorder << " threads " << threads;
       }
     }
+}
+
+// Minimum, maximum and finiteness against a plain loop, for every length up
+// to past a few vector widths (the lanes' remainder), with a NaN or an
+// infinity at every position, and extremes a multiplication by 0 keeps finite.
+TEST(CoordinateExtent, MatchesAPlainLoopAndFindsEveryNonFiniteValue) {
+  EXPECT_TRUE(coordinate_extent({}).finite);
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-1e3, 1e3);
+  for (std::size_t n = 1; n <= 40; ++n) {
+    std::vector<double> a(n);
+    for (double& v : a) v = u(rng);
+    a[n / 2] = n % 2 ? std::numeric_limits<double>::max() : -std::numeric_limits<double>::max();
+    const CoordinateExtent e = coordinate_extent(a);
+    EXPECT_TRUE(e.finite) << n;
+    EXPECT_EQ(e.lo, *std::min_element(a.begin(), a.end())) << n;
+    EXPECT_EQ(e.hi, *std::max_element(a.begin(), a.end())) << n;
+    for (std::size_t bad = 0; bad < n; ++bad)
+      for (double v : {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity(),
+                       -std::numeric_limits<double>::infinity()}) {
+        std::vector<double> b = a;
+        b[bad] = v;
+        EXPECT_FALSE(coordinate_extent(b).finite) << n << " " << bad << " " << v;
+      }
+  }
 }
 
 // A non-finite coordinate anywhere in a cloud split over threads is found,

@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "sphnl/neighbours/coordinate_extent.hpp"
 #include "sphnl/neighbours/distance.hpp"
 #include "sphnl/neighbours/neighbour_search.hpp"
 
@@ -37,14 +38,13 @@ void check_finite(const std::vector<double>& x, const std::vector<double>& y, co
   const char* names[3] = {"x", "y", "z"};
   for (int d = 0; d < 3; ++d) {
     const std::vector<double>& v = *axes[d];
-    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    for (std::size_t i = 0; i < v.size(); ++i) {
-      if (!std::isfinite(v[i]))
-        fail(std::string(what) + ": " + names[d] + "[" + std::to_string(i) + "] is " + (std::isnan(v[i]) ? "NaN" : "infinite") +
-             "; every coordinate must be finite (remove or fix that point)");
-      lo = std::min(lo, v[i]);
-      hi = std::max(hi, v[i]);
-    }
+    const CoordinateExtent e = coordinate_extent(v);
+    if (!e.finite)  // the slow search for the message only when there is one
+      for (std::size_t i = 0; i < v.size(); ++i)
+        if (!std::isfinite(v[i]))
+          fail(std::string(what) + ": " + names[d] + "[" + std::to_string(i) + "] is " + (std::isnan(v[i]) ? "NaN" : "infinite") +
+               "; every coordinate must be finite (remove or fix that point)");
+    const double lo = e.lo, hi = e.hi;
     if (!v.empty() && !std::isfinite(hi - lo))
       fail(std::string(what) + ": the " + names[d] + " coordinates span more than the largest double (" +
            std::to_string(lo) + " to " + std::to_string(hi) + "); shift or scale the cloud");
