@@ -25,18 +25,13 @@ void PreconditionedVector::build_serial(std::span<const std::uint32_t> cell_key)
   // Pass 1: particles per cell (the "extra arrays" that precondition the vector).
   for (std::size_t i = 0; i < n; ++i)
     if (cell_key[i] != kNoCell) ++cells_begin_[cell_key[i] + 1];
-  std::uint32_t max_count = 0;
-  for (std::uint32_t k = 0; k < num_keys; ++k) {
-    max_count = std::max(max_count, cells_begin_[k + 1]);
-    cells_begin_[k + 1] += cells_begin_[k];
-  }
-  max_cell_count_ = max_count;
+  for (std::uint32_t k = 0; k < num_keys; ++k) cells_begin_[k + 1] += cells_begin_[k];
   // Pass 2: place particles; `cursor_` is where the next particle of a cell goes.
   cursor_.assign(cells_begin_.begin(), cells_begin_.end() - 1);
   parts_sorted_.resize(cells_begin_[num_keys]);
   for (std::size_t i = 0; i < n; ++i)
     if (cell_key[i] != kNoCell) parts_sorted_[cursor_[cell_key[i]]++] = static_cast<std::uint32_t>(i);
-  stored_ = cells_begin_[num_keys];
+  finish_build(cells_begin_[num_keys]);
 }
 
 void PreconditionedVector::build_parallel(std::span<const std::uint32_t> cell_key, int threads) {
@@ -48,7 +43,6 @@ void PreconditionedVector::build_parallel(std::span<const std::uint32_t> cell_ke
   cursor_.resize(static_cast<std::size_t>(threads) * keys);
   cells_begin_.resize(keys + 1);
   parts_sorted_.resize(n);
-  std::uint32_t max_count = 0;
 #pragma omp parallel num_threads(threads)
   {
     const std::size_t t = static_cast<std::size_t>(omp_get_thread_num());
@@ -72,7 +66,6 @@ void PreconditionedVector::build_parallel(std::span<const std::uint32_t> cell_ke
           cursor_[u * keys + k] = slot;
           slot += count;
         }
-        max_count = std::max(max_count, slot - cells_begin_[k]);
       }
       cells_begin_[keys] = slot;
     }  // the implicit barrier: every cursor row is set
@@ -81,8 +74,7 @@ void PreconditionedVector::build_parallel(std::span<const std::uint32_t> cell_ke
     for (std::size_t i = begin; i < end; ++i)
       if (cell_key[i] != kNoCell) parts[mine[cell_key[i]]++] = static_cast<std::uint32_t>(i);
   }
-  max_cell_count_ = max_count;
-  stored_ = cells_begin_[keys];
+  finish_build(cells_begin_[keys]);
 }
 
 }  // namespace sphnl

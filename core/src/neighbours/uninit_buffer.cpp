@@ -2,7 +2,6 @@
 
 #include <atomic>
 #include <cstddef>
-#include <cstdint>
 #include <limits>
 
 #if defined(__linux__)
@@ -29,7 +28,7 @@ void* allocate_buffer(std::size_t bytes, bool huge_pages) {
   if (bytes > static_cast<std::size_t>(std::numeric_limits<std::ptrdiff_t>::max()) - 2 * kHugePageBytes)
     throw std::bad_alloc();
   if (bytes == 0) bytes = 1;
-  // The block std::malloc or std::aligned_alloc returned is kept in the
+  // The block std::aligned_alloc returned is kept in the
   // pointer-sized slot just before the buffer, so free_buffer needs neither
   // the size nor the choice of pages.
   std::size_t offset = kBufferAlignment;
