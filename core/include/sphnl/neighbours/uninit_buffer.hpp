@@ -34,7 +34,7 @@ inline constexpr std::size_t kBufferAlignment = 64;
 /// line) into it, in turn. Buffers that all start at 2 MiB boundaries share
 /// their low 21 address bits: element i of the x, y and z coordinates and of
 /// the row offsets then falls on the same cache sets, and a warm search of
-/// 10^6 points ran 10-14 % slower on huge pages than on base pages on one
+/// 10^6 points ran 10-13 % slower on huge pages than on base pages on one
 /// machine (Intel Xeon, model 207); started at staggered offsets, as fast
 /// (docs/FINDINGS.md, "Peers and threads").
 inline constexpr std::size_t kHugePageColourStep = 8192 + kBufferAlignment;
