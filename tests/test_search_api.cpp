@@ -288,6 +288,33 @@ TEST(SearchApi, QueryOfASecondPointSet) {
   EXPECT_THROW(fresh.query(p, p, p), std::logic_error);
 }
 
+// Double input with reorder on is not copied (the engine keeps the points in
+// cell order); every option must still answer queries about the cloud as it
+// was built, after the caller has overwritten or freed its arrays.
+TEST(SearchApi, QueryAnswersForTheBuiltCloudAfterTheCallersArraysChange) {
+  const Cloud cloud = test_clouds().front();
+  const Columns c = columns_of(cloud.ps);
+  const double r2 = cloud.radius * cloud.radius;
+  for (const Search::Options& opt : all_options()) {
+    Search s(cloud.radius, opt);
+    {
+      Columns scratch = c;
+      s.build(scratch.x, scratch.y, scratch.z);
+      std::fill(scratch.x.begin(), scratch.x.end(), std::numeric_limits<double>::quiet_NaN());
+      std::fill(scratch.y.begin(), scratch.y.end(), 1e9);
+    }  // and freed
+    ASSERT_EQ(s.size(), c.x.size());
+    for (std::size_t k = 0; k < c.x.size(); k += 53) {
+      const std::vector<double> qx{c.x[k]}, qy{c.y[k]}, qz{c.z[k]};
+      const CompressedRows rows = s.query(qx, qy, qz);
+      std::vector<std::uint32_t> expect;
+      for (std::size_t j = 0; j < c.x.size(); ++j)
+        if (distance2(c.x[j] - qx[0], c.y[j] - qy[0], c.z[j] - qz[0]) < r2) expect.push_back(static_cast<std::uint32_t>(j));
+      ASSERT_EQ(rows.indices, expect) << cloud.name << " " << name_of(opt) << " point " << k;
+    }
+  }
+}
+
 namespace {
 template <class Fn>
 std::string message_of(Fn fn) {

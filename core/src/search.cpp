@@ -31,12 +31,12 @@ void check_lengths(std::size_t nx, std::size_t ny, std::size_t nz, const char* w
 
 /// Throws naming the first non-finite coordinate; also refuses clouds whose
 /// extent overflows a double (the cell grid could not be sized).
-void check_finite(const std::vector<double>& x, const std::vector<double>& y, const std::vector<double>& z,
+void check_finite(std::span<const double> x, std::span<const double> y, std::span<const double> z,
                   const char* what) {
-  const std::vector<double>* axes[3] = {&x, &y, &z};
+  const std::span<const double>* axes[3] = {&x, &y, &z};
   const char* names[3] = {"x", "y", "z"};
   for (int d = 0; d < 3; ++d) {
-    const std::vector<double>& v = *axes[d];
+    const std::span<const double> v = *axes[d];
     const CoordinateExtent e = coordinate_extent(v);
     if (!e.finite)  // the slow search for the message only when there is one
       for (std::size_t i = 0; i < v.size(); ++i)
@@ -80,11 +80,13 @@ struct Search::Impl {
   Options options;
   NeighbourSearch engine;
   NeighbourLists lists;
-  // The coordinates of the last build, in input order: the engine reads them,
-  // query() needs them after the caller's spans are gone, and float or
-  // interleaved input has to be converted anyway.
+  std::size_t n = 0;  // points of the last build
+  // The coordinates of the last build in input order, where the engine
+  // cannot be handed the caller's own: float or interleaved input (to be
+  // converted), and reorder off (query() reads them after the caller's spans
+  // are gone). Double input with reorder on is not copied: the engine keeps
+  // the coordinates in cell order, and query() reads those.
   std::vector<double> x, y, z;
-  std::vector<std::uint32_t> cell_order;
   bool built = false;
 
   Impl(double r, const Options& o)
@@ -98,12 +100,12 @@ struct Search::Impl {
           return s;
         }()) {}
 
-  /// Runs the engine on x, y, z (already filled and length-checked).
-  void run() {
+  /// Runs the engine on x, y, z (length-checked).
+  void run(std::span<const double> px, std::span<const double> py, std::span<const double> pz) {
     built = false;  // a failed build leaves no stale results
-    check_finite(x, y, z, "build");
+    check_finite(px, py, pz, "build");
     try {
-      engine.run(x, y, z, radius, lists);
+      engine.run(px, py, pz, radius, lists);
       // Cell coordinates are packed in 21 bits per axis (CellOrder::pack_coords):
       // a longer grid would silently lose pairs, so its lists are refused.
       const CellGrid& grid = engine.grid();
@@ -113,13 +115,9 @@ struct Search::Impl {
                                   std::to_string(grid.cell_size) + " along " + "xyz"[d] + ", more than the " +
                                   std::to_string(kMaxCellsPerAxis) +
                                   " cell coordinates can hold; use a larger radius or split the cloud along that axis");
-      // Rows come in the order the engine swept the cells, one per point:
-      // row r's point is the r-th point in cell order.
-      cell_order.resize(lists.num_rows());
-      for (std::size_t r = 0; r < lists.num_rows(); ++r) cell_order[r] = lists.point(r);
     } catch (const std::bad_alloc&) {
       built = false;
-      throw std::length_error("sphnl::Search: out of memory for the cells or lists of " + std::to_string(x.size()) +
+      throw std::length_error("sphnl::Search: out of memory for the cells or lists of " + std::to_string(px.size()) +
                               " points at radius " + std::to_string(radius) +
                               " (a larger radius than intended, or split the cloud)");
     } catch (const std::logic_error&) {  // invalid_argument and length_error, ours or the engine's
@@ -129,8 +127,28 @@ struct Search::Impl {
       built = false;
       throw std::length_error(std::string("sphnl::Search: ") + e.what());
     }
+    n = px.size();
     built = true;
   }
+  /// Runs the engine on the converted copy x, y, z.
+  void run_on_copy() { run(x, y, z); }
+  /// Runs the engine on the caller's double coordinates, copying them only
+  /// where query() will need them in input order (reorder off).
+  void run_on(std::span<const double> px, std::span<const double> py, std::span<const double> pz) {
+    if (!options.reorder) {
+      copy_columns(px, py, pz, x, y, z);
+      run_on_copy();
+      return;
+    }
+    x.clear();
+    y.clear();
+    z.clear();
+    run(px, py, pz);
+  }
+
+  /// Rows come in the order the engine swept the cells, one per point: row
+  /// r's point is the r-th point in cell order.
+  std::span<const std::uint32_t> cell_order() const { return lists.points(); }
 
   /// fn(point, row, kind) for every row of the lists, in cell order.
   template <class Fn>
@@ -155,26 +173,25 @@ Search& Search::operator=(Search&&) noexcept = default;
 
 void Search::build(std::span<const double> x, std::span<const double> y, std::span<const double> z) {
   check_lengths(x.size(), y.size(), z.size(), "build");
-  copy_columns(x, y, z, impl_->x, impl_->y, impl_->z);
-  impl_->run();
+  impl_->run_on(x, y, z);
 }
 
 void Search::build(std::span<const float> x, std::span<const float> y, std::span<const float> z) {
   check_lengths(x.size(), y.size(), z.size(), "build");
   copy_columns(x, y, z, impl_->x, impl_->y, impl_->z);
-  impl_->run();
+  impl_->run_on_copy();
 }
 
 void Search::build_interleaved(std::span<const double> xyz) {
   split_interleaved(xyz, impl_->x, impl_->y, impl_->z);
   check_lengths(impl_->x.size(), impl_->y.size(), impl_->z.size(), "build_interleaved");
-  impl_->run();
+  impl_->run_on_copy();
 }
 
 void Search::build_interleaved(std::span<const float> xyz) {
   split_interleaved(xyz, impl_->x, impl_->y, impl_->z);
   check_lengths(impl_->x.size(), impl_->y.size(), impl_->z.size(), "build_interleaved");
-  impl_->run();
+  impl_->run_on_copy();
 }
 
 void Search::update(std::span<const double> x, std::span<const double> y, std::span<const double> z) {
@@ -191,7 +208,7 @@ void Search::update(std::span<const float> x, std::span<const float> y, std::spa
   build(x, y, z);
 }
 
-std::size_t Search::size() const { return impl_->built ? impl_->x.size() : 0; }
+std::size_t Search::size() const { return impl_->built ? impl_->n : 0; }
 double Search::radius() const { return impl_->radius; }
 const Search::Options& Search::options() const { return impl_->options; }
 
@@ -291,7 +308,7 @@ void Search::rows_into(Rows kind, std::span<std::int64_t> offsets, std::span<std
   }
   // Input point -> engine row (the inverse of cell_order).
   std::vector<std::uint32_t> row_of(n);
-  const std::vector<std::uint32_t>& point_of_row = s.cell_order;
+  const std::span<const std::uint32_t> point_of_row = s.cell_order();
 #pragma omp parallel for num_threads(threads) schedule(static) if (threads > 1)
   for (std::ptrdiff_t r = 0; r < rows; ++r) row_of[point_of_row[r]] = static_cast<std::uint32_t>(r);
   std::uint32_t* const out = indices.data();
@@ -338,7 +355,7 @@ void Search::visit_rows(RowVisitor visit, void* ctx) const {
 
 std::span<const std::uint32_t> Search::cell_order() const {
   if (!impl_->built) return {};
-  return impl_->cell_order;
+  return impl_->cell_order();
 }
 
 void Search::check_field_size(std::size_t src, std::size_t dst) const {
@@ -357,6 +374,12 @@ CompressedRows Search::query(std::span<const double> qx, std::span<const double>
   const Gridder& gridder = s.engine.gridder();
   const double radius2 = s.radius * s.radius;
   std::vector<std::uint32_t> cell(std::max<std::size_t>(1, gridder.max_cell_count()));
+  // With reorder on the engine holds the coordinates in cell order (the
+  // build did not copy the caller's); with it off, s.x, s.y, s.z.
+  const std::span<const std::uint32_t> start = s.engine.cell_start(), point = s.cell_order();
+  const std::span<const double> xs = s.engine.coordinate_in_cell_order(0), ys = s.engine.coordinate_in_cell_order(1),
+                                zs = s.engine.coordinate_in_cell_order(2);
+  const bool in_cell_order = !start.empty();
   CompressedRows out;
   out.offsets.assign(nq + 1, 0);
   for (std::size_t q = 0; q < nq; ++q) {
@@ -379,11 +402,17 @@ CompressedRows Search::query(std::span<const double> qx, std::span<const double>
       lo[d] = std::max(0, static_cast<int>(c) - 1);
       hi[d] = std::min(grid.n[d] - 1, static_cast<int>(c) + 1);
     }
-    if (!outside && !s.x.empty()) {
+    if (!outside && s.n > 0) {
       for (int cz = lo[2]; cz <= hi[2]; ++cz)
         for (int cy = lo[1]; cy <= hi[1]; ++cy)
           for (int cx = lo[0]; cx <= hi[0]; ++cx) {
-            const std::uint32_t count = gridder.gather_cell(order.key(cx, cy, cz), cell.data());
+            const std::uint32_t key = order.key(cx, cy, cz);
+            if (in_cell_order) {  // the cell's points are consecutive positions
+              for (std::uint32_t r = start[key]; r < start[key + 1]; ++r)
+                if (distance2(xs[r] - p[0], ys[r] - p[1], zs[r] - p[2]) < radius2) out.indices.push_back(point[r]);
+              continue;
+            }
+            const std::uint32_t count = gridder.gather_cell(key, cell.data());
             for (std::uint32_t k = 0; k < count; ++k) {
               const std::uint32_t j = cell[k];
               if (distance2(s.x[j] - p[0], s.y[j] - p[1], s.z[j] - p[2]) < radius2) out.indices.push_back(j);

@@ -62,6 +62,8 @@ class NeighbourLists {
   std::size_t num_rows() const { return point_.size(); }
   std::uint64_t num_entries() const { return offsets_.empty() ? 0 : offsets_.back(); }
   std::uint32_t point(std::size_t r) const { return point_[r]; }
+  /// point(r) of every row r: the input points in the order of the rows.
+  std::span<const std::uint32_t> points() const { return {point_.data(), point_.size()}; }
   std::span<const std::uint32_t> row(std::size_t r) const {
     const Segment& s = segment_of(r);
     return {s.entries.data() + (offsets_[r] - s.base), static_cast<std::size_t>(offsets_[r + 1] - offsets_[r])};
@@ -123,6 +125,19 @@ class NeighbourSearch {
   const CellGrid& grid() const { return grid_; }
   const Gridder& gridder() const { return *gridder_; }
   const CellOrder& order() const { return *order_; }
+  /// With reorder on: the points of cell key k are rows / cell-order
+  /// positions [cell_start()[k], cell_start()[k + 1]), and
+  /// coordinate(d)[r] is axis d of the point in position r (input point
+  /// NeighbourLists::point(r)). Empty spans with reorder off.
+  std::span<const std::uint32_t> cell_start() const {
+    if (!options_.reorder) return {};
+    return cell_start_;
+  }
+  std::span<const double> coordinate_in_cell_order(int axis) const {
+    const BufferVector<double>& c = axis == 0 ? xs_ : axis == 1 ? ys_ : zs_;
+    if (!options_.reorder) return {};
+    return {c.data(), c.size()};
+  }
   /// Bytes of the search structures (gridder, ordering tables, keys,
   /// reordering buffers, gather buffers), not counting the lists.
   std::size_t bytes() const;
