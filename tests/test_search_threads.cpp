@@ -125,6 +125,38 @@ TEST(CoordinateExtent, MatchesAPlainLoopAndFindsEveryNonFiniteValue) {
   }
 }
 
+// The three extents scanned in parts over threads are those of one scan,
+// and a non-finite value in any part (the last thread's included) is seen.
+TEST(CoordinateExtent, ExtentsSplitOverThreadsEqualOneScan) {
+  const std::size_t n = 4 * 65536 + 11;  // four threads' worth, uneven
+  std::mt19937_64 rng(8);
+  std::uniform_real_distribution<double> u(-50.0, 50.0);
+  std::vector<double> c[3];
+  for (auto& a : c) {
+    a.resize(n);
+    for (double& v : a) v = u(rng);
+  }
+  c[1][n - 1] = 900.0;  // the largest y in the last thread's part
+  c[2][3] = -900.0;     // the smallest z in the first
+  for (int threads : {1, 2, 4}) {
+    const CoordinateExtents e = coordinate_extents(c[0], c[1], c[2], threads);
+    for (int d = 0; d < 3; ++d) {
+      EXPECT_TRUE(e[d].finite) << threads << " " << d;
+      EXPECT_EQ(e[d].lo, *std::min_element(c[d].begin(), c[d].end())) << threads << " " << d;
+      EXPECT_EQ(e[d].hi, *std::max_element(c[d].begin(), c[d].end())) << threads << " " << d;
+    }
+    for (std::size_t at : {std::size_t{0}, n / 2, n - 1}) {
+      std::vector<double> bad = c[0];
+      bad[at] = std::numeric_limits<double>::quiet_NaN();
+      const CoordinateExtents b = coordinate_extents(bad, c[1], c[2], threads);
+      EXPECT_FALSE(b[0].finite) << threads << " " << at;
+      EXPECT_TRUE(b[1].finite && b[2].finite) << threads << " " << at;
+    }
+  }
+  const CoordinateExtents empty = coordinate_extents({}, {}, {}, 2);
+  EXPECT_TRUE(empty[0].finite && empty[0].lo == 0 && empty[0].hi == 0);
+}
+
 // A non-finite coordinate anywhere in a cloud split over threads is found,
 // and the message names the first such point.
 TEST(SearchThreads, SplitBoundingBoxNamesTheFirstNonFinitePoint) {

@@ -30,14 +30,16 @@ void check_lengths(std::size_t nx, std::size_t ny, std::size_t nz, const char* w
 }
 
 /// Throws naming the first non-finite coordinate; also refuses clouds whose
-/// extent overflows a double (the cell grid could not be sized).
-void check_finite(std::span<const double> x, std::span<const double> y, std::span<const double> z,
-                  const char* what) {
-  const std::span<const double>* axes[3] = {&x, &y, &z};
+/// extent overflows a double (the cell grid could not be sized). Returns the
+/// extents, which the engine then need not scan again.
+CoordinateExtents check_finite(std::span<const double> x, std::span<const double> y, std::span<const double> z,
+                               const char* what, int threads) {
+  const CoordinateExtents extents = coordinate_extents(x, y, z, threads);
+  const std::span<const double> axes[3] = {x, y, z};
   const char* names[3] = {"x", "y", "z"};
   for (int d = 0; d < 3; ++d) {
-    const std::span<const double> v = *axes[d];
-    const CoordinateExtent e = coordinate_extent(v);
+    const std::span<const double> v = axes[d];
+    const CoordinateExtent& e = extents[d];
     if (!e.finite)  // the slow search for the message only when there is one
       for (std::size_t i = 0; i < v.size(); ++i)
         if (!std::isfinite(v[i]))
@@ -48,6 +50,7 @@ void check_finite(std::span<const double> x, std::span<const double> y, std::spa
       fail(std::string(what) + ": the " + names[d] + " coordinates span more than the largest double (" +
            std::to_string(lo) + " to " + std::to_string(hi) + "); shift or scale the cloud");
   }
+  return extents;
 }
 
 template <class T>
@@ -103,9 +106,9 @@ struct Search::Impl {
   /// Runs the engine on x, y, z (length-checked).
   void run(std::span<const double> px, std::span<const double> py, std::span<const double> pz) {
     built = false;  // a failed build leaves no stale results
-    check_finite(px, py, pz, "build");
+    const CoordinateExtents extents = check_finite(px, py, pz, "build", options.threads);
     try {
-      engine.run(px, py, pz, radius, lists);
+      engine.run(px, py, pz, radius, lists, &extents);
       // Cell coordinates are packed in 21 bits per axis (CellOrder::pack_coords):
       // a longer grid would silently lose pairs, so its lists are refused.
       const CellGrid& grid = engine.grid();

@@ -23,36 +23,20 @@ struct Range {
   std::uint32_t begin, end;
 };
 
-/// The box of the points, split over `threads` threads for large clouds;
-/// throws std::invalid_argument naming the first point with a non-finite
-/// coordinate. An empty cloud has the box {0, 0}.
-Box bounding_box(std::span<const double> x, std::span<const double> y, std::span<const double> z, int threads) {
-  const std::size_t n = x.size();
+/// The box of the points from their extents; throws std::invalid_argument
+/// naming the first point with a non-finite coordinate. An empty cloud has
+/// the box {0, 0}.
+Box bounding_box(std::span<const double> x, std::span<const double> y, std::span<const double> z,
+                 const CoordinateExtents& extents) {
   Box box{{0, 0, 0}, {0, 0, 0}};
-  if (n == 0) return box;
-  constexpr std::size_t kMinPerThread = 65536;
-  const int team = static_cast<int>(std::clamp<std::size_t>(n / kMinPerThread, 1, static_cast<std::size_t>(threads)));
-  const double* coords[3] = {x.data(), y.data(), z.data()};
-  std::vector<CoordinateExtent> part(static_cast<std::size_t>(team) * 3);
-#pragma omp parallel for num_threads(team) schedule(static) if (team > 1)
-  for (int t = 0; t < team; ++t) {
-    const std::size_t b = n * static_cast<std::size_t>(t) / static_cast<std::size_t>(team);
-    const std::size_t e = n * static_cast<std::size_t>(t + 1) / static_cast<std::size_t>(team);
-    for (int d = 0; d < 3; ++d)
-      part[static_cast<std::size_t>(t) * 3 + d] = coordinate_extent(std::span<const double>(coords[d] + b, e - b));
+  for (int d = 0; d < 3; ++d) {
+    if (!extents[d].finite)
+      for (std::size_t i = 0; i < x.size(); ++i)
+        if (!std::isfinite(x[i]) || !std::isfinite(y[i]) || !std::isfinite(z[i]))
+          throw std::invalid_argument("NeighbourSearch: point " + std::to_string(i) + " has a non-finite coordinate");
+    box.lo[d] = extents[d].lo;
+    box.hi[d] = extents[d].hi;
   }
-  bool finite = true;
-  for (int d = 0; d < 3; ++d) box.lo[d] = box.hi[d] = coords[d][0];
-  for (std::size_t k = 0; k < part.size(); ++k) {
-    const CoordinateExtent& p = part[k];
-    box.lo[k % 3] = std::min(box.lo[k % 3], p.lo);
-    box.hi[k % 3] = std::max(box.hi[k % 3], p.hi);
-    finite = finite && p.finite;
-  }
-  if (!finite)
-    for (std::size_t i = 0; i < n; ++i)
-      if (!std::isfinite(x[i]) || !std::isfinite(y[i]) || !std::isfinite(z[i]))
-        throw std::invalid_argument("NeighbourSearch: point " + std::to_string(i) + " has a non-finite coordinate");
   return box;
 }
 
@@ -104,14 +88,14 @@ std::size_t NeighbourSearch::bytes() const {
 }
 
 void NeighbourSearch::build(std::span<const double> x, std::span<const double> y, std::span<const double> z,
-                            double radius) {
+                            double radius, const CoordinateExtents* known) {
   const std::size_t n = x.size();
   if (y.size() != n || z.size() != n) throw std::invalid_argument("NeighbourSearch: x, y, z differ in length");
   if (n >= 0xFFFFFFFFu) throw std::invalid_argument("NeighbourSearch: more than 2^32 - 2 points");
   if (!(radius > 0) || !std::isfinite(radius))
     throw std::invalid_argument("NeighbourSearch: radius must be a positive finite number, got " + std::to_string(radius));
   const int threads = std::max(1, options_.threads);
-  const Box box = bounding_box(x, y, z, threads);
+  const Box box = bounding_box(x, y, z, known ? *known : coordinate_extents(x, y, z, threads));
   double max_abs = 0;
   for (int d = 0; d < 3; ++d) max_abs = std::max({max_abs, std::fabs(box.lo[d]), std::fabs(box.hi[d])});
   // Cells of side R, widened by the round-off of the cell coordinate so a
@@ -150,9 +134,9 @@ void NeighbourSearch::build(std::span<const double> x, std::span<const double> y
 }
 
 void NeighbourSearch::run(std::span<const double> x, std::span<const double> y, std::span<const double> z,
-                          double radius, NeighbourLists& out) {
+                          double radius, NeighbourLists& out, const CoordinateExtents* known) {
   Stopwatch sw;
-  build(x, y, z, radius);
+  build(x, y, z, radius, known);
   times_.build = sw.lap();
   use_huge_pages(out.point_, options_.huge_pages);
   use_huge_pages(out.offsets_, options_.huge_pages);

@@ -32,6 +32,7 @@
 #include "sphnl/grid.hpp"
 #include "sphnl/gridders/gridder.hpp"
 #include "sphnl/kinds.hpp"
+#include "sphnl/neighbours/coordinate_extent.hpp"
 #include "sphnl/neighbours/cell_sort.hpp"
 #include "sphnl/neighbours/distance.hpp"
 #include "sphnl/neighbours/uninit_buffer.hpp"
@@ -118,8 +119,11 @@ class NeighbourSearch {
   /// Full lists of the points (x[i], y[i], z[i]) within `radius` (strictly)
   /// into `out` (its storage is reused between calls). Coordinates must be
   /// finite; radius > 0. Buffers are kept, so repeated calls do not allocate.
+  /// `known`: the coordinates' extents when the caller has scanned them
+  /// already (coordinate_extents; the public API checks its input so), to
+  /// save the second pass over every coordinate.
   void run(std::span<const double> x, std::span<const double> y, std::span<const double> z, double radius,
-           NeighbourLists& out);
+           NeighbourLists& out, const CoordinateExtents* known = nullptr);
 
   const SearchTimes& times() const { return times_; }
   const CellGrid& grid() const { return grid_; }
@@ -148,7 +152,8 @@ class NeighbourSearch {
     std::vector<std::uint32_t> index;
     std::vector<double> x, y, z;
   };
-  void build(std::span<const double> x, std::span<const double> y, std::span<const double> z, double radius);
+  void build(std::span<const double> x, std::span<const double> y, std::span<const double> z, double radius,
+             const CoordinateExtents* known);
   /// Splits the keys into one range per thread and runs
   /// sweep(thread, key_begin, key_end, segment) on each, in parallel when
   /// there are several; then makes the offsets global.
