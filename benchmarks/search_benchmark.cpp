@@ -24,6 +24,7 @@
 #include "bench_common.hpp"
 #include "bench_guard.hpp"
 #include "peers/clouds.hpp"
+#include "roofline/core_peaks.hpp"
 #include "sphnl/neighbours/neighbour_search.hpp"
 #include "sphnl/neighbours/pair_checksum.hpp"
 #include "sphnl/search.hpp"
@@ -311,6 +312,7 @@ void register_search_benchmarks(const json& sweep) {
         }
         CallResult r;
         FaultCount faults;
+        const MachineWitness witness = measure_machine_witness();  // untimed, just before the call
         for (auto _ : st) {
           // call: first stands in for the first call of a fresh process: the
           // last call's objects freed, every free page the allocator holds
@@ -341,6 +343,8 @@ void register_search_benchmarks(const json& sweep) {
         st.counters["bytes"] = r.bytes;
         st.counters["page_faults"] = faults.process;
         if (faults.thp >= 0) st.counters["thp_faults"] = faults.thp;
+        st.counters["witness_core_gflops"] = witness.core_gflops;
+        st.counters["witness_mem_gbps"] = witness.mem_gbps;
         st.counters["run_sequence"] = static_cast<double>(sequence);
       });
     })->Unit(benchmark::kMillisecond)->UseRealTime();

@@ -51,10 +51,18 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
   // is the record of it for each repetition (docs/MEASUREMENT.md).
   double probe_sum = 0;
   int probes = 0;
+  MachineWitness witness;  // wall-clock core and memory speed before each window (core_peaks.hpp)
+  int witnesses = 0;
   for (auto _ : state) {
     state.PauseTiming();
     sim.restore(start.particles(), start.time(), start.steps_done(), start.lost());
-    if (roofline) probe_sum += measure_fma_peak_double_gflops(1, 0.005), ++probes;
+    if (roofline) {
+      const MachineWitness w = measure_machine_witness();
+      witness.core_gflops += w.core_gflops;
+      witness.mem_gbps += w.mem_gbps;
+      ++witnesses;
+      probe_sum += measure_fma_peak_double_gflops(1, 0.005), ++probes;
+    }
     state.ResumeTiming();
     timed_window(sim, window, max_bytes);
     if (roofline) {
@@ -104,6 +112,8 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
     c["fma_peak_gflops"] = peak;
     c["force_peak_fraction"] = gflops / (peak * cfg.threads);
     c["core_gflops_around_window"] = probes ? probe_sum / probes : 0.0;
+    c["witness_core_gflops"] = witnesses ? witness.core_gflops / witnesses : 0.0;
+    c["witness_mem_gbps"] = witnesses ? witness.mem_gbps / witnesses : 0.0;
   }
   c["vl_misses"] = static_cast<double>(s.vl_misses);
   c["extra_loop_passes"] = static_cast<double>(s.extra_loop_passes);

@@ -148,10 +148,48 @@ def rounds_section(run_dir):
                      + f"; load average up to {most('loadavg_before')}/{most('loadavg_after')} before/after, "
                      f"other processes up to {most('other_busy_cores')} cores, steal up to {most('steal_pct')} %)")
         lines.append(desc)
+        witness = witness_line(doc)
+        if witness:
+            lines.append("  " + witness)
     if old:
         lines.append(f"- {', '.join(f'`{o}`' for o in old)}: written before rounds were recorded "
                      "(no noise records); each repetition is resampled as its own round")
     return lines, flagged
+
+
+def witness_line(doc):
+    """One line on the machine witness of a results file (the core's and the
+    memory path's speed recorded before every repetition): its range, and the
+    rank correlation of a repetition's time, over its configuration's median,
+    with each witness. None when the file has no witness counters."""
+    by_config = collections.defaultdict(list)
+    for b in doc.get("benchmarks", []):
+        if b.get("run_type", "iteration") != "iteration":
+            continue
+        core, mem, t = b.get("witness_core_gflops"), b.get("witness_mem_gbps"), b.get("real_time")
+        if not all(isinstance(v, (int, float)) and v > 0 for v in (core, mem, t)):
+            continue
+        by_config[b.get("run_name", b.get("name"))].append((t, core, mem))
+    rel, cores, mems = [], [], []
+    for reps in by_config.values():
+        if len(reps) < 3:
+            continue
+        median = float(np.median([r[0] for r in reps]))
+        for t, core, mem in reps:
+            rel.append(t / median)
+            cores.append(core)
+            mems.append(mem)
+    if len(rel) < 6:
+        return None
+    from scipy.stats import spearmanr  # only where witnesses were recorded
+    rho_core = float(spearmanr(rel, cores)[0])
+    rho_mem = float(spearmanr(rel, mems)[0])
+    def fmt(v):
+        return "n/a" if math.isnan(v) else f"{v:+.2f}"
+    return (f"witness over {len(rel)} repetitions: core {min(cores):.0f}-{max(cores):.0f} GFlop/s, "
+            f"memory {min(mems):.1f}-{max(mems):.1f} GB/s; rank correlation of a repetition's time "
+            f"(over its configuration's median) with them: {fmt(rho_core)} (core), {fmt(rho_mem)} (memory); "
+            "negative: slower repetitions came with a slower witness")
 
 
 def targets(results):

@@ -3,6 +3,7 @@
 #include <time.h>
 
 #include <algorithm>
+#include <chrono>
 #include <fstream>
 #include <string>
 
@@ -130,6 +131,25 @@ double measure_fma_peak_double_gflops(int trials, double seconds) {
 
 double measure_fma_peak_float_gflops(int trials, double seconds) {
   return best_gflops(fma_flops_float, trials, seconds);
+}
+
+MachineWitness measure_machine_witness() {
+  using clock = std::chrono::steady_clock;
+  auto seconds_since = [](clock::time_point t0) { return std::chrono::duration<double>(clock::now() - t0).count(); };
+  MachineWitness w;
+  // ~2 ms of FMA chains at this core's peak; the rounds are fixed, so every
+  // witness does the same work.
+  constexpr std::int64_t kFmaRounds = 2'000'000;
+  auto t0 = clock::now();
+  const double flops = fma_flops_double(kFmaRounds);
+  w.core_gflops = flops / seconds_since(t0) * 1e-9;
+  // 32 MiB per array: larger than a core's L2, and too large for a tenant's
+  // fair share of a shared last-level cache to hold all three.
+  static Triad triad(std::size_t{32} << 17);  // allocated and touched on first use
+  t0 = clock::now();
+  const double bytes = triad.run();
+  w.mem_gbps = bytes / seconds_since(t0) * 1e-9;
+  return w;
 }
 
 }  // namespace sphnl::bench

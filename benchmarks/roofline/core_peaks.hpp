@@ -57,4 +57,17 @@ double measure_fma_peak_double_gflops(int trials = 3, double seconds = 0.02);
 /// The same with the float kernel (the peak of precision=mixed's pair kernel).
 double measure_fma_peak_float_gflops(int trials = 3, double seconds = 0.02);
 
+/// How fast this machine runs at this moment, in a few milliseconds of wall
+/// time: the double FMA kernel (the core's clock and its share of the
+/// physical core) and one triad pass over 3 x 32 MiB (the memory path other
+/// tenants of a shared host contend for). Timed by the wall clock, as the
+/// benchmarks are, so time taken from this thread by the host shows too.
+/// The benchmarks record it before each timed call, so a slow repetition
+/// can be told apart from a slow machine (docs/MEASUREMENT.md, "Witness").
+struct MachineWitness {
+  double core_gflops = 0;
+  double mem_gbps = 0;
+};
+MachineWitness measure_machine_witness();
+
 }  // namespace sphnl::bench

@@ -9,6 +9,7 @@ import json
 import math
 import os
 import pathlib
+import re
 import shutil
 import subprocess
 import sys
@@ -266,6 +267,39 @@ def run_fake(results_dir, seed):
     if p.returncode:
         raise AssertionError(f"run.py failed ({p.returncode}):\n{p.stdout}\n{p.stderr}")
     return pathlib.Path(results_dir) / "r"
+
+
+class TestWitnessLine(unittest.TestCase):
+    """The report's witness line: the rank correlation of a repetition's
+    time (over its configuration's median) with the witness recorded before
+    it, pooled over configurations."""
+
+    @staticmethod
+    def doc(reps):
+        return {"benchmarks": [{"run_type": "iteration", "run_name": name, "real_time": t,
+                                "witness_core_gflops": core, "witness_mem_gbps": mem}
+                               for name, t, core, mem in reps]}
+
+    def test_slow_repetitions_with_a_slow_core_give_a_negative_core_correlation(self):
+        rng = np.random.default_rng(3)
+        reps = []
+        for name, base in (("a", 100.0), ("b", 300.0)):  # two configurations, different scales
+            for _ in range(8):
+                core = rng.uniform(70, 90)
+                reps.append((name, base * 80 / core, core, rng.uniform(11, 13)))
+        line = report.witness_line(self.doc(reps))
+        self.assertIn("over 16 repetitions", line)
+        rho = {k: float(v) for v, k in re.findall(r"([+-]\d\.\d\d) \((core|memory)\)", line)}
+        # time inverse to the core witness in each configuration; the two
+        # configurations' medians differ, so pooled ranks are close to -1, not -1
+        self.assertLess(rho["core"], -0.8)
+        self.assertLess(abs(rho["memory"]), 0.6)
+
+    def test_files_without_witnesses_give_no_line(self):
+        self.assertIsNone(report.witness_line({"benchmarks": [{"run_type": "iteration", "run_name": "a",
+                                                               "real_time": 1.0}] * 8}))
+        few = [("a", 1.0 + k, 80.0, 12.0) for k in range(2)]  # too few repetitions to rank
+        self.assertIsNone(report.witness_line(self.doc(few)))
 
 
 class TestClaimsJsonAndReplication(unittest.TestCase):
