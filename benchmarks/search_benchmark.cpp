@@ -312,7 +312,7 @@ void register_search_benchmarks(const json& sweep) {
         }
         CallResult r;
         FaultCount faults;
-        const MachineWitness witness = measure_machine_witness();  // untimed, just before the call
+        const MachineWitness witness = measure_machine_witness(cfg.threads);  // untimed, just before the call
         for (auto _ : st) {
           // call: first stands in for the first call of a fresh process: the
           // last call's objects freed, every free page the allocator holds

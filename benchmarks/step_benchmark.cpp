@@ -57,7 +57,7 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
     state.PauseTiming();
     sim.restore(start.particles(), start.time(), start.steps_done(), start.lost());
     if (roofline) {
-      const MachineWitness w = measure_machine_witness();
+      const MachineWitness w = measure_machine_witness(cfg.threads);
       witness.core_gflops += w.core_gflops;
       witness.mem_gbps += w.mem_gbps;
       ++witnesses;

@@ -1,11 +1,13 @@
 #include "roofline/core_peaks.hpp"
 
+#include <omp.h>
 #include <time.h>
 
 #include <algorithm>
 #include <chrono>
 #include <fstream>
 #include <string>
+#include <vector>
 
 namespace sphnl::bench {
 
@@ -69,15 +71,14 @@ double fma_flops_float(std::int64_t rounds) { return chains<VecF, float>(rounds)
 
 Triad::Triad(std::size_t elements) : a_(elements, 0.0), b_(elements, 1.0), c_(elements, 2.0) {}
 
-double Triad::run() {
+double Triad::run(std::size_t begin, std::size_t end) {
   double* __restrict a = a_.data();
   const double* __restrict b = b_.data();
   const double* __restrict c = c_.data();
   const double s = s_;
-  const std::size_t n = a_.size();
-  for (std::size_t i = 0; i < n; ++i) a[i] = b[i] + s * c[i];
+  for (std::size_t i = begin; i < end; ++i) a[i] = b[i] + s * c[i];
   asm volatile("" : : "r"(a) : "memory");
-  return 24.0 * static_cast<double>(n);
+  return 24.0 * static_cast<double>(end - begin);
 }
 
 std::size_t last_level_cache_bytes() {
@@ -133,23 +134,39 @@ double measure_fma_peak_float_gflops(int trials, double seconds) {
   return best_gflops(fma_flops_float, trials, seconds);
 }
 
-MachineWitness measure_machine_witness() {
+MachineWitness measure_machine_witness(int threads) {
   using clock = std::chrono::steady_clock;
   auto seconds_since = [](clock::time_point t0) { return std::chrono::duration<double>(clock::now() - t0).count(); };
-  MachineWitness w;
-  // ~2 ms of FMA chains at this core's peak; the rounds are fixed, so every
-  // witness does the same work.
-  constexpr std::int64_t kFmaRounds = 2'000'000;
-  auto t0 = clock::now();
-  const double flops = fma_flops_double(kFmaRounds);
-  w.core_gflops = flops / seconds_since(t0) * 1e-9;
   // 32 MiB per array: larger than a core's L2, and too large for a tenant's
   // fair share of a shared last-level cache to hold all three.
   static Triad triad(std::size_t{32} << 17);  // allocated and touched on first use
-  t0 = clock::now();
-  const double bytes = triad.run();
-  w.mem_gbps = bytes / seconds_since(t0) * 1e-9;
-  return w;
+  // ~2 ms of FMA chains at this core's peak; fixed, so every witness does
+  // the same work.
+  constexpr std::int64_t kFmaRounds = 2'000'000;
+  threads = std::max(1, threads);
+  std::vector<MachineWitness> per(static_cast<std::size_t>(threads));
+#pragma omp parallel num_threads(threads)
+  {
+    const int t = omp_get_thread_num(), team = omp_get_num_threads();
+    MachineWitness& w = per[static_cast<std::size_t>(t)];
+#pragma omp barrier
+    auto t0 = clock::now();
+    const double flops = fma_flops_double(kFmaRounds);
+    w.core_gflops = flops / seconds_since(t0) * 1e-9;
+    const std::size_t n = triad.elements();
+    const std::size_t begin = n * static_cast<std::size_t>(t) / static_cast<std::size_t>(team);
+    const std::size_t end = n * static_cast<std::size_t>(t + 1) / static_cast<std::size_t>(team);
+#pragma omp barrier
+    t0 = clock::now();
+    const double bytes = triad.run(begin, end);
+    w.mem_gbps = bytes / seconds_since(t0) * 1e-9;
+  }
+  MachineWitness slowest = per[0];
+  for (const MachineWitness& w : per) {
+    slowest.core_gflops = std::min(slowest.core_gflops, w.core_gflops);
+    slowest.mem_gbps = std::min(slowest.mem_gbps, w.mem_gbps);
+  }
+  return slowest;
 }
 
 }  // namespace sphnl::bench

@@ -31,7 +31,9 @@ class Triad {
   explicit Triad(std::size_t elements);
   /// One pass; returns the bytes STREAM counts for it (24 per element: two
   /// reads and one write; the write-allocate read of a[] is not counted).
-  double run();
+  double run() { return run(0, a_.size()); }
+  /// One pass over elements [begin, end) only (a thread's share).
+  double run(std::size_t begin, std::size_t end);
   std::size_t elements() const { return a_.size(); }
 
  private:
@@ -59,15 +61,19 @@ double measure_fma_peak_float_gflops(int trials = 3, double seconds = 0.02);
 
 /// How fast this machine runs at this moment, in a few milliseconds of wall
 /// time: the double FMA kernel (the core's clock and its share of the
-/// physical core) and one triad pass over 3 x 32 MiB (the memory path other
-/// tenants of a shared host contend for). Timed by the wall clock, as the
-/// benchmarks are, so time taken from this thread by the host shows too.
-/// The benchmarks record it before each timed call, so a slow repetition
-/// can be told apart from a slow machine (docs/MEASUREMENT.md, "Witness").
+/// physical core) and a triad pass over 3 x 32 MiB (the memory path other
+/// tenants of a shared host contend for). With `threads` > 1 every thread of
+/// a team that size runs both at once, the FMA rounds each and the triad on
+/// its share of the arrays, as the timed code's threads would; the slowest
+/// thread's speeds are returned (a team is as fast as its slowest member).
+/// Timed by the wall clock, as the benchmarks are, so time the host takes
+/// from a thread shows too. The benchmarks record it before each timed call,
+/// so a slow repetition can be told apart from a slow machine
+/// (docs/MEASUREMENT.md, "Witness").
 struct MachineWitness {
-  double core_gflops = 0;
-  double mem_gbps = 0;
+  double core_gflops = 0;  ///< per thread, the slowest thread's
+  double mem_gbps = 0;     ///< per thread, the slowest thread's
 };
-MachineWitness measure_machine_witness();
+MachineWitness measure_machine_witness(int threads = 1);
 
 }  // namespace sphnl::bench

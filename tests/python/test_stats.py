@@ -294,6 +294,14 @@ class TestWitnessLine(unittest.TestCase):
         # configurations' medians differ, so pooled ranks are close to -1, not -1
         self.assertLess(rho["core"], -0.8)
         self.assertLess(abs(rho["memory"]), 0.6)
+        self.assertNotIn("below 85 %", line)  # 70-90 GFlop/s: none below 85 % of the median
+
+    def test_a_repetition_on_a_slow_machine_is_counted_and_kept(self):
+        reps = [("a", 100.0 + k, 85.0 + 0.1 * k, 12.0) for k in range(8)]
+        reps.append(("a", 160.0, 85.0, 9.0))  # memory witness at 75 % of the median
+        line = report.witness_line(self.doc(reps))
+        self.assertIn("1 repetition(s) with a witness below 85 % of the median", line)
+        self.assertIn("1.54-1.54x", line)  # 160 over the median of nine, 104
 
     def test_files_without_witnesses_give_no_line(self):
         self.assertIsNone(report.witness_line({"benchmarks": [{"run_type": "iteration", "run_name": "a",
