@@ -201,6 +201,24 @@ def witness_line(doc):
     return line
 
 
+def quiet_rows(df):
+    """The rows of `df` without the repetitions measured on a slow machine:
+    either witness below 85 % of its experiment's median (rows without a
+    witness are kept). Returns (rows, {experiment: repetitions left out})."""
+    cols = ["witness_core_gflops", "witness_mem_gbps"]
+    if not len(df) or not all(c in df.columns for c in cols):
+        return df, {}
+    slow = np.zeros(len(df), dtype=bool)
+    for exp, rows in df.groupby("experiment"):
+        idx = df.index.get_indexer(rows.index)
+        for c in cols:
+            v = rows[c].to_numpy(float)
+            if np.isfinite(v).any():
+                slow[idx] |= v < 0.85 * np.nanmedian(v)
+    left_out = collections.Counter(df.loc[slow, "experiment"])
+    return df[~slow], dict(left_out)
+
+
 def targets(results):
     """Lines that check the targets of docs/MEASUREMENT.md on this run: share resolved,
     interval half-widths of improvement (pp) and ratio (x) claims."""
@@ -231,6 +249,21 @@ def targets(results):
     return out
 
 
+def add_quiet(found, quiet_evaluator, exp, left_out):
+    """Puts each claim's value without the slow-witness repetitions into
+    r["quiet"], where the claim's experiments lost any and it can still be
+    measured."""
+    try:
+        quiet = quiet_evaluator.experiment(exp, exp["claims"])
+    except Exception:  # noqa: BLE001 - too few repetitions left: no sensitivity line
+        return
+    for r, q in zip(found, quiet):
+        lost = sum(left_out.get(e, 0) for e in (r.get("experiments") or [exp.get("uses") or exp["id"]]))
+        if lost and q.get("value") is not None and r["verdict"] != "not measured":
+            r["quiet"] = {"value": q["value"], "ci_low": q["ci_low"], "ci_high": q["ci_high"],
+                          "verdict": q["verdict"], "left_out": lost}
+
+
 def claim_record(exp, r):
     """The claims.json object of one evaluated claim."""
     rec = {k: r.get(k) for k in CLAIM_KEYS if k not in ("figure", "band")}
@@ -256,6 +289,10 @@ def claim_note(r):
         parts.append("each experiment alone: " + ", ".join(
             f"{p['experiment']} {fmt_ci(p['value'], p['ci_low'], p['ci_high'], r['unit'])}"
             for p in r["per_experiment"]))
+    if r.get("quiet"):
+        q = r["quiet"]
+        parts.append(f"without the experiment's {q['left_out']} repetition(s) whose machine witness was below 85 % of its "
+                     f"median: {fmt_ci(q['value'], q['ci_low'], q['ci_high'], r['unit'])} ({q['verdict']})")
     if r.get("resolve"):
         parts.append("to resolve: " + r["resolve"])
     if r["verdict"] != "not measured":
@@ -291,6 +328,12 @@ def build(run_dir, exp_dir, resamples=None):
     if resamples is None:  # a tiny run's numbers say nothing: few replicates keep make test fast
         resamples = TINY_RESAMPLES if tiny else S.RESAMPLES
     evaluator = C.Evaluator(df, resamples=resamples, per_experiment_resamples=min(100, resamples))
+    # The same claims without the repetitions the machine witness flags as
+    # measured on a slow machine: a sensitivity line beside each claim whose
+    # experiments had any; the verdict stays the one from every repetition.
+    quiet, left_out = quiet_rows(df)
+    quiet_evaluator = (C.Evaluator(quiet, resamples=resamples, per_experiment_resamples=10)
+                       if left_out else None)  # its per-experiment values are not shown
     F.RESAMPLES = min(resamples, TINY_RESAMPLES) if tiny else max(50, resamples // 4)
     for exp_id, exp in experiments.items():
         drawn = exp_id == "table1" or exp_id in F.FIGURES
@@ -298,7 +341,10 @@ def build(run_dir, exp_dir, resamples=None):
             continue  # not a figure (e.g. the CI benchmark set `compare`)
         src = exp.get("uses") or exp_id
         data = df[df["experiment"] == src]
-        results += [(exp, r) for r in evaluator.experiment(exp, exp["claims"])]
+        found = evaluator.experiment(exp, exp["claims"])
+        if quiet_evaluator is not None and exp["claims"]:
+            add_quiet(found, quiet_evaluator, exp, left_out)
+        results += [(exp, r) for r in found]
         if data.empty or not drawn:
             if drawn:
                 skipped.append(f"{exp_id} ({exp['figure']}): `{src}.json` is missing from {run_dir}")

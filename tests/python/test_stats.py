@@ -310,6 +310,33 @@ class TestWitnessLine(unittest.TestCase):
         self.assertIsNone(report.witness_line(self.doc(few)))
 
 
+class TestQuietRows(unittest.TestCase):
+    """The sensitivity line: the claims again without the repetitions whose
+    machine witness fell below 85 % of their experiment's median."""
+
+    def test_slow_witness_rows_are_left_out_per_experiment_and_rows_without_one_kept(self):
+        df = pd.DataFrame({
+            "experiment": ["a"] * 5 + ["b"] * 4,
+            "witness_core_gflops": [80, 82, 81, 60, 80, 40, 41, 40, np.nan],
+            "witness_mem_gbps": [12, 12, 9, 12, 12, 6, 6, 6, 6],
+        })
+        quiet, left_out = report.quiet_rows(df)
+        # a: core 60 < 0.85 x 80 and memory 9 < 0.85 x 12; b: its own medians (40, 6), nothing slow
+        self.assertEqual(left_out, {"a": 2})
+        self.assertEqual(list(quiet.index), [0, 1, 4, 5, 6, 7, 8])
+        no_witness = pd.DataFrame({"experiment": ["a"] * 3, "real_time_s": [1.0, 2.0, 3.0]})
+        self.assertEqual(report.quiet_rows(no_witness)[1], {})
+
+    def test_the_note_gives_the_value_without_them_beside_the_verdict(self):
+        r = {"note": "", "verdict": "unresolved", "unit": "x", "repetitions": 9, "rounds": 3,
+             "tolerance": {"reproduced": [1.9, 2.2], "partly": [1.6, 2.4]}, "band_reason": "why",
+             "quiet": {"value": 1.41, "ci_low": 1.34, "ci_high": 1.98, "verdict": "unresolved", "left_out": 28}}
+        note = report.claim_note(r)
+        self.assertIn("without the experiment's 28 repetition(s) whose machine witness was below 85 %", note)
+        self.assertIn("1.41x [1.34, 1.98] (unresolved)", note)
+        self.assertNotIn("machine witness", report.claim_note({**r, "quiet": None}))
+
+
 class TestClaimsJsonAndReplication(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
