@@ -32,8 +32,8 @@
 #include "sphnl/grid.hpp"
 #include "sphnl/gridders/gridder.hpp"
 #include "sphnl/kinds.hpp"
-#include "sphnl/neighbours/coordinate_extent.hpp"
 #include "sphnl/neighbours/cell_sort.hpp"
+#include "sphnl/neighbours/coordinate_extent.hpp"
 #include "sphnl/neighbours/distance.hpp"
 #include "sphnl/neighbours/uninit_buffer.hpp"
 #include "sphnl/orderings/cell_order.hpp"
@@ -129,10 +129,10 @@ class NeighbourSearch {
   const CellGrid& grid() const { return grid_; }
   const Gridder& gridder() const { return *gridder_; }
   const CellOrder& order() const { return *order_; }
-  /// With reorder on: the points of cell key k are rows / cell-order
-  /// positions [cell_start()[k], cell_start()[k + 1]), and
-  /// coordinate(d)[r] is axis d of the point in position r (input point
-  /// NeighbourLists::point(r)). Empty spans with reorder off.
+  /// With reorder on: the points of cell key k are the cell-order positions
+  /// (= rows) [cell_start()[k], cell_start()[k + 1]), and
+  /// coordinate_in_cell_order(d)[r] is axis d of the point in position r
+  /// (input point NeighbourLists::point(r)). Empty spans with reorder off.
   std::span<const std::uint32_t> cell_start() const {
     if (!options_.reorder) return {};
     return cell_start_;
