@@ -157,6 +157,22 @@ def rounds_section(run_dir):
     return lines, flagged
 
 
+# A repetition was measured on a slow machine when either witness fell below
+# this share of its results file's median (the spread of an idle machine's
+# witness is a few per cent).
+SLOW_WITNESS = 0.85
+
+
+def slow_witness(cores, mems):
+    """Mask of the repetitions whose core or memory witness is below
+    SLOW_WITNESS times its median (NaN, no witness: never slow)."""
+    slow = np.zeros(len(cores), dtype=bool)
+    for v in (np.asarray(cores, float), np.asarray(mems, float)):
+        if np.isfinite(v).any():
+            slow |= v < SLOW_WITNESS * np.nanmedian(v)
+    return slow
+
+
 def witness_line(doc):
     """One line on the machine witness of a results file (the core's and the
     memory path's speed recorded before every repetition): its range, and the
@@ -184,10 +200,7 @@ def witness_line(doc):
     from scipy.stats import spearmanr  # only where witnesses were recorded
     rho_core = float(spearmanr(rel, cores)[0])
     rho_mem = float(spearmanr(rel, mems)[0])
-    # Slow-machine repetitions: either witness below 85 % of the file's median
-    # (the spread of an idle machine's witness is a few per cent).
-    core_med, mem_med = float(np.median(cores)), float(np.median(mems))
-    slow = [(r, c, m) for r, c, m in zip(rel, cores, mems) if c < 0.85 * core_med or m < 0.85 * mem_med]
+    slow = [r for r, s in zip(rel, slow_witness(cores, mems)) if s]
     def fmt(v):
         return "n/a" if math.isnan(v) else f"{v:+.2f}"
     line = (f"witness over {len(rel)} repetitions: core {min(cores):.0f}-{max(cores):.0f} GFlop/s, "
@@ -195,26 +208,21 @@ def witness_line(doc):
             f"(over its configuration's median) with them: {fmt(rho_core)} (core), {fmt(rho_mem)} (memory); "
             "negative: slower repetitions came with a slower witness")
     if slow:
-        line += (f"; {len(slow)} repetition(s) with a witness below 85 % of the median, their times "
-                 f"{min(r for r, _, _ in slow):.2f}-{max(r for r, _, _ in slow):.2f}x their configuration's "
-                 "median (kept in every estimate)")
+        line += (f"; {len(slow)} repetition(s) with a witness below {SLOW_WITNESS * 100:g} % of the median, their "
+                 f"times {min(slow):.2f}-{max(slow):.2f}x their configuration's median (kept in every estimate)")
     return line
 
 
 def quiet_rows(df):
-    """The rows of `df` without the repetitions measured on a slow machine:
-    either witness below 85 % of its experiment's median (rows without a
-    witness are kept). Returns (rows, {experiment: repetitions left out})."""
+    """The rows of `df` without the repetitions measured on a slow machine
+    (slow_witness within each experiment; rows without a witness are kept).
+    Returns (rows, {experiment: repetitions left out})."""
     cols = ["witness_core_gflops", "witness_mem_gbps"]
     if not len(df) or not all(c in df.columns for c in cols):
         return df, {}
     slow = np.zeros(len(df), dtype=bool)
-    for exp, rows in df.groupby("experiment"):
-        idx = df.index.get_indexer(rows.index)
-        for c in cols:
-            v = rows[c].to_numpy(float)
-            if np.isfinite(v).any():
-                slow[idx] |= v < 0.85 * np.nanmedian(v)
+    for _, rows in df.groupby("experiment"):
+        slow[df.index.get_indexer(rows.index)] = slow_witness(rows[cols[0]], rows[cols[1]])
     left_out = collections.Counter(df.loc[slow, "experiment"])
     return df[~slow], dict(left_out)
 
@@ -252,13 +260,16 @@ def targets(results):
 def add_quiet(found, quiet_evaluator, exp, left_out):
     """Puts each claim's value without the slow-witness repetitions into
     r["quiet"], where the claim's experiments lost any and it can still be
-    measured."""
+    measured. An experiment none of whose claims lost a repetition is not
+    evaluated again."""
+    lost_by_claim = [sum(left_out.get(e, 0) for e in r.get("experiments", [])) for r in found]
+    if not any(lost_by_claim):
+        return
     try:
         quiet = quiet_evaluator.experiment(exp, exp["claims"])
     except Exception:  # noqa: BLE001 - too few repetitions left: no sensitivity line
         return
-    for r, q in zip(found, quiet):
-        lost = sum(left_out.get(e, 0) for e in (r.get("experiments") or [exp.get("uses") or exp["id"]]))
+    for r, q, lost in zip(found, quiet, lost_by_claim):
         if lost and q.get("value") is not None and r["verdict"] != "not measured":
             r["quiet"] = {"value": q["value"], "ci_low": q["ci_low"], "ci_high": q["ci_high"],
                           "verdict": q["verdict"], "left_out": lost}
@@ -291,8 +302,9 @@ def claim_note(r):
             for p in r["per_experiment"]))
     if r.get("quiet"):
         q = r["quiet"]
-        parts.append(f"without the experiment's {q['left_out']} repetition(s) whose machine witness was below 85 % of its "
-                     f"median: {fmt_ci(q['value'], q['ci_low'], q['ci_high'], r['unit'])} ({q['verdict']})")
+        parts.append(f"without the experiment's {q['left_out']} repetition(s) whose machine witness was below "
+                     f"{SLOW_WITNESS * 100:g} % of its median: {fmt_ci(q['value'], q['ci_low'], q['ci_high'], r['unit'])} "
+                     f"({q['verdict']})")
     if r.get("resolve"):
         parts.append("to resolve: " + r["resolve"])
     if r["verdict"] != "not measured":
