@@ -376,13 +376,14 @@ CompressedRows Search::query(std::span<const double> qx, std::span<const double>
   const CellOrder& order = s.engine.order();
   const Gridder& gridder = s.engine.gridder();
   const double radius2 = s.radius * s.radius;
-  std::vector<std::uint32_t> cell(std::max<std::size_t>(1, gridder.max_cell_count()));
   // With reorder on the engine holds the coordinates in cell order (the
-  // build did not copy the caller's); with it off, s.x, s.y, s.z.
+  // build did not copy the caller's); with it off, s.x, s.y, s.z, and each
+  // cell is gathered through the gridder into `cell`.
   const std::span<const std::uint32_t> start = s.engine.cell_start(), point = s.cell_order();
   const std::span<const double> xs = s.engine.coordinate_in_cell_order(0), ys = s.engine.coordinate_in_cell_order(1),
                                 zs = s.engine.coordinate_in_cell_order(2);
   const bool in_cell_order = !start.empty();
+  std::vector<std::uint32_t> cell(in_cell_order ? 0 : std::max<std::size_t>(1, gridder.max_cell_count()));
   CompressedRows out;
   out.offsets.assign(nq + 1, 0);
   for (std::size_t q = 0; q < nq; ++q) {
