@@ -177,7 +177,7 @@ def part_record(args):
     return {"date": M.now(), "git_revision": M.git_revision() or "unknown",
             "git_dirty": M.git_dirty(), "bench": M.relative_to_repo(args.bench),
             "bench_sha256": M.sha256(args.bench), "max_n": args.max_n, "only": args.only,
-            "loadavg_start": M.loadavg(), "loadavg_end": None}
+            "machine": M.machine_identity(), "loadavg_start": M.loadavg(), "loadavg_end": None}
 
 
 def read_machine(path):
@@ -194,9 +194,15 @@ def earlier_parts(old):
     if not old:
         return []
     if "parts" in old:
-        return list(old["parts"])
-    keys = ("date", "git_revision", "git_dirty", "max_n", "bench", "bench_sha256")
-    return list(old.get("earlier", [])) + [{k: old.get(k) for k in keys}]
+        parts = [dict(p) for p in old["parts"]]
+    else:
+        keys = ("date", "git_revision", "git_dirty", "max_n", "bench", "bench_sha256")
+        parts = list(old.get("earlier", [])) + [{k: old.get(k) for k in keys}]
+    # Files written before parts recorded their machine: the top level
+    # describes the machine of the last part (machine_record), and only that.
+    if parts and not parts[-1].get("machine") and old.get("cpu_model"):
+        parts[-1]["machine"] = M.machine_identity(old)
+    return parts
 
 
 def machine_record(args, part, parts_before, forced):

@@ -7,6 +7,7 @@ compared between machines).
 """
 import datetime
 import hashlib
+import json
 import os
 import pathlib
 import platform
@@ -232,11 +233,35 @@ class NoiseProbe:
 
 
 # ----------------------------------------------------------------- the parts
+# What a part records of the machine it ran on: a run assembled in parts over
+# several sessions may otherwise land on another VM (another CPU, another
+# core count) between parts, and its pooled figures would mix two machines.
+IDENTITY_KEYS = ("cpu_vendor", "cpu_model", "cpu_family", "cpu_model_number", "logical_cpus")
+TEST_IDENTITY = "SPHNL_TEST_MACHINE"  # tests: a JSON object that replaces this machine's identity
+
+
+def machine_identity(info=None):
+    """The keys of IDENTITY_KEYS from machine_info() (or from `info`)."""
+    if info is None and os.environ.get(TEST_IDENTITY):
+        return json.loads(os.environ[TEST_IDENTITY])
+    info = machine_info() if info is None else info
+    return {k: info.get(k) for k in IDENTITY_KEYS}
+
+
+def describe_identity(identity):
+    """'AMD EPYC (family 26, model 2), 2 logical CPUs' from machine_identity()."""
+    ident = ", ".join(f"{k} {identity[key]}" for k, key in (("family", "cpu_family"), ("model", "cpu_model_number"))
+                      if identity.get(key) is not None)
+    return (f"{identity.get('cpu_model') or 'unknown CPU'}{' (' + ident + ')' if ident else ''}, "
+            f"{identity.get('logical_cpus') or '?'} logical CPUs")
+
+
 def merge_refusal(earlier_parts, part):
     """Why the results of `part` (this invocation) must not be merged into a
     run folder whose earlier parts are `earlier_parts`, or None when they may:
     a dirty tree, or a revision or bench binary that differs from an earlier
-    part's, would mix measurements of different code."""
+    part's, would mix measurements of different code; another machine's
+    (machine_identity) would mix measurements of different hardware."""
     if part.get("git_dirty"):
         return ("the working tree has uncommitted changes to the code (git status, results/ "
                 "aside); commit them, or measure into a new run folder")
@@ -249,4 +274,9 @@ def merge_refusal(earlier_parts, part):
                 return (f"the {what} differs from an earlier part's ({old.get('date')}: "
                         f"{old[key][:12]} here {part[key][:12]}); measure into a new run folder "
                         "or rebuild the earlier revision")
+        mine, theirs = part.get("machine"), old.get("machine")
+        if mine and theirs and any(mine.get(k) != theirs.get(k) for k in IDENTITY_KEYS):
+            return (f"the machine differs from an earlier part's ({old.get('date')}: "
+                    f"{describe_identity(theirs)}; here {describe_identity(mine)}); measure into a new "
+                    "run folder on this machine, or finish the run on the earlier one")
     return None

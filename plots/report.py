@@ -23,6 +23,7 @@ import sys
 
 import numpy as np
 
+from harness import machine as M
 from harness import stats as S
 from harness.fsio import write_atomic
 from harness.results import NOT_RESULTS, ResultsError, errors, load_experiments, load_run
@@ -110,8 +111,9 @@ def machine_section(run_dir):
         cap = f", N ≤ {part['max_n']:,}" if part.get("max_n") else ""
         forced = f", **merged by force**: {part.get('forced_merge_reason') or 'no reason given'}" \
             if part.get("forced_merge") else ""
+        where = f", on {M.describe_identity(part['machine'])}" if part.get("machine") else ""
         rows.append(("Earlier part", f"{part.get('date', '?')}, revision "
-                                     f"{(part.get('git_revision') or '?')[:12]}{cap}{forced}"))
+                                     f"{(part.get('git_revision') or '?')[:12]}{cap}{where}{forced}"))
     if m.get("forced_merge"):
         rows.append(("Forced merge", "**yes**: parts from a dirty tree or different code were merged "
                                      f"with --force-merge ({m.get('forced_merge_reason') or 'no reason given'})"))

@@ -548,12 +548,37 @@ class TestProvenance(TempDirCase):
         self.assertIn("git revision differs", M.merge_refusal([part], {**part, "git_revision": "b" * 40}))
         self.assertIn("bench binary differs", M.merge_refusal([part], {**part, "bench_sha256": "2" * 64}))
         self.assertIn("earlier part", M.merge_refusal([{**part, "git_dirty": True}], part))
+        amd = {"cpu_vendor": "AuthenticAMD", "cpu_model": "AMD EPYC", "cpu_family": 26, "cpu_model_number": 2,
+               "logical_cpus": 2}
+        intel = {"cpu_vendor": "GenuineIntel", "cpu_model": "Intel Xeon", "cpu_family": 6,
+                 "cpu_model_number": 207, "logical_cpus": 2}
+        self.assertIsNone(M.merge_refusal([{**part, "machine": amd}], {**part, "machine": dict(amd)}))
+        why = M.merge_refusal([{**part, "machine": amd}], {**part, "machine": intel})
+        self.assertIn("machine differs", why)
+        self.assertIn("AMD EPYC (family 26, model 2), 2 logical CPUs", why)
+        self.assertIn("here Intel Xeon (family 6, model 207)", why)
+        self.assertIn("machine differs", M.merge_refusal([{**part, "machine": amd}],
+                                                         {**part, "machine": {**amd, "logical_cpus": 4}}))
+        # a part recorded before parts carried their machine is not refused for it
+        self.assertIsNone(M.merge_refusal([part], {**part, "machine": intel}))
+
+    def test_an_old_machine_json_gives_its_last_part_the_top_level_machine(self):
+        old = {"cpu_vendor": "AuthenticAMD", "cpu_model": "AMD EPYC", "cpu_family": 26, "cpu_model_number": 2,
+               "logical_cpus": 2, "memory_bytes": 1,
+               "parts": [{"date": "d1", "git_revision": "a" * 40}, {"date": "d2", "git_revision": "a" * 40}]}
+        parts = run.earlier_parts(old)
+        self.assertNotIn("machine", parts[0])  # unknown: the top level is the last part's machine
+        self.assertEqual(parts[1]["machine"], M.machine_identity(old))
+        self.assertNotIn("machine", old["parts"][1])  # the record read is left as it was
 
     def test_merge_of_a_part_is_refused_unless_forced(self):
         out, _ = fake_run(self.tmp, "default", "--only", "fig06", "--max-n", "16000")
         before = (out / "fig06.json").read_bytes()
+        elsewhere = json.dumps({"cpu_vendor": "v", "cpu_model": "Another CPU", "cpu_family": 1,
+                                "cpu_model_number": 1, "logical_cpus": 64})
         for env, needle in (({M.TEST_REVISION: "b" * 40}, "git revision differs"),
-                            ({M.TEST_DIRTY: "1"}, "uncommitted changes")):
+                            ({M.TEST_DIRTY: "1"}, "uncommitted changes"),
+                            ({M.TEST_IDENTITY: elsewhere}, "machine differs")):
             code, _, err = run_cli("--size", "default", "--results-dir", self.tmp, "--bench", FAKE,
                                    "--run-id", "r", "--only", "fig06", env=env)
             self.assertEqual(code, 2, err)
@@ -572,6 +597,14 @@ class TestProvenance(TempDirCase):
         rounds = read_doc(out / "fig06.json")["sphnl_rounds"]
         self.assertEqual([r["round"] for r in rounds], list(range(len(rounds))))
         self.assertEqual({r["git_revision"][0] for r in rounds}, {"a", "b"})
+
+    def test_the_report_names_the_machine_of_each_earlier_part(self):
+        out, _ = fake_run(self.tmp, "default", "--only", "fig06", "--max-n", "16000")
+        fake_run(self.tmp, "default", "--only", "fig06")  # the rest of fig06: a second part
+        lines, _ = report.machine_section(out)
+        earlier = [line for line in lines if line.startswith("| Earlier part |")]
+        self.assertEqual(len(earlier), 1, lines)
+        self.assertIn(f"on {M.describe_identity(M.machine_identity())}", earlier[0])
 
     def test_force_merge_needs_a_reason(self):
         code, _, err = run_cli("--size", "tiny", "--bench", FAKE, "--force-merge", " ")
