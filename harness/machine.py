@@ -16,9 +16,27 @@ import subprocess
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 CPU_SYS = pathlib.Path("/sys/devices/system/cpu")
-# A round is flagged `under_load` when others used more than this many cores
-# (load average beyond the bench's own threads), or steal exceeded STEAL_PCT.
+# A round is flagged `under_load` when other processes used more than this
+# many cores while it ran, or steal exceeded STEAL_PCT (see under_load()).
 LOAD_MARGIN, STEAL_PCT = 0.5, 1.0
+
+
+def under_load(record, bench_threads=None):
+    """Whether a round's noise record says it ran under load. Where /proc/stat
+    was read (`other_busy_cores`, `steal_pct`), those decide: they measure the
+    round itself. The load average is a one-minute mean that still holds the
+    run's own work just before (a snapshot developed on every core inside the
+    round, the previous round's threads), so it decides only where /proc/stat
+    could not be read: with the bench's threads known, it must exceed them by
+    LOAD_MARGIN; without them, the flag the record carries."""
+    others, steal = record.get("other_busy_cores"), record.get("steal_pct")
+    if others is not None or steal is not None:
+        return bool((others or 0) > LOAD_MARGIN or (steal or 0) > STEAL_PCT)
+    if bench_threads is None:
+        return bool(record.get("under_load"))
+    allowance = bench_threads + LOAD_MARGIN
+    return any(v is not None and v[0] > allowance
+               for v in (record.get("loadavg_before"), record.get("loadavg_after")))
 
 
 def _cmd(*args):
@@ -220,16 +238,14 @@ class NoiseProbe:
             own = ((children.children_user - self.children_before.children_user) +
                    (children.children_system - self.children_before.children_system)) * ticks
             other_cores = round(max(0.0, d_busy - own) / wall_ticks, 2) if wall_ticks > 0 else None
-        load_after = loadavg()
-        allowance = self.bench_threads + LOAD_MARGIN
-        loaded = any(v is not None and v[0] > allowance for v in (self.load_before, load_after))
-        loaded = loaded or (steal_pct or 0) > STEAL_PCT or (other_cores or 0) > LOAD_MARGIN
-        return {"started": self.started, "ended": now(),
-                "loadavg_before": self.load_before, "loadavg_after": load_after,
-                "steal_pct": steal_pct, "other_busy_cores": other_cores,
-                "cpu_affinity": affinity(),
-                "omp_proc_bind": env.get("OMP_PROC_BIND"), "omp_places": env.get("OMP_PLACES"),
-                "cpu_mhz": cpu_mhz(), "under_load": bool(loaded)}
+        record = {"started": self.started, "ended": now(),
+                  "loadavg_before": self.load_before, "loadavg_after": loadavg(),
+                  "steal_pct": steal_pct, "other_busy_cores": other_cores,
+                  "cpu_affinity": affinity(),
+                  "omp_proc_bind": env.get("OMP_PROC_BIND"), "omp_places": env.get("OMP_PLACES"),
+                  "cpu_mhz": cpu_mhz()}
+        record["under_load"] = under_load(record, self.bench_threads)
+        return record
 
 
 # ----------------------------------------------------------------- the parts

@@ -135,7 +135,8 @@ def rounds_section(run_dir):
             old.append(path.stem)
             continue
         proto = doc.get("sphnl_protocol") or {}
-        loaded = [r for r in rounds if r.get("under_load")]
+        # the rule of today's harness, also on files measured under an older one
+        loaded = [r for r in rounds if M.under_load(r)]
         flagged += len(loaded)
         desc = (f"- `{path.stem}`: {len(rounds)} rounds × {proto.get('reps_per_round', '?')} repetitions, "
                 f"stopped: {proto.get('stop_reason', '?')}")

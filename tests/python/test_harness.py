@@ -562,6 +562,36 @@ class TestProvenance(TempDirCase):
         # a part recorded before parts carried their machine is not refused for it
         self.assertIsNone(M.merge_refusal([part], {**part, "machine": intel}))
 
+    def test_under_load_is_decided_by_what_others_used_during_the_round(self):
+        quiet = {"loadavg_before": [0.7, 1.2, 1.6], "loadavg_after": [1.6, 1.5, 1.6],
+                 "other_busy_cores": 0.0, "steal_pct": 0.01, "under_load": True}
+        # the load average holds the run's own snapshot development: not load
+        self.assertFalse(M.under_load(quiet, bench_threads=1))
+        self.assertFalse(M.under_load(quiet))
+        self.assertTrue(M.under_load({**quiet, "other_busy_cores": 0.63}))
+        self.assertTrue(M.under_load({**quiet, "steal_pct": 2.5}))
+        self.assertFalse(M.under_load({**quiet, "other_busy_cores": 0.5, "steal_pct": 1.0}))  # limits included
+        # without /proc/stat: the load average against the bench's threads, else the stored flag
+        blind = {"loadavg_before": [2.6, 2.0, 1.0], "loadavg_after": [1.0, 1.0, 1.0],
+                 "other_busy_cores": None, "steal_pct": None}
+        self.assertTrue(M.under_load(blind, bench_threads=2))
+        self.assertFalse(M.under_load(blind, bench_threads=3))
+        self.assertTrue(M.under_load({**blind, "under_load": True}))
+        self.assertFalse(M.under_load({**blind, "under_load": False}))
+
+    def test_the_report_flags_rounds_by_todays_rule(self):
+        d = self.tmp / "run"
+        d.mkdir()
+        rounds = [{"round": 0, "loadavg_before": [0.7, 1, 1], "loadavg_after": [1.9, 1, 1],
+                   "other_busy_cores": 0.0, "steal_pct": 0.0, "under_load": True},
+                  {"round": 1, "loadavg_before": [0.5, 1, 1], "loadavg_after": [0.6, 1, 1],
+                   "other_busy_cores": 0.9, "steal_pct": 0.0, "under_load": False}]
+        (d / "fig06.json").write_text(json.dumps({"benchmarks": [], "sphnl_rounds": rounds,
+                                                  "sphnl_protocol": {"reps_per_round": 3}}))
+        lines, flagged = report.rounds_section(d)
+        self.assertEqual(flagged, 1)
+        self.assertIn("**under load**: 1 of 2 rounds (1;", lines[0])
+
     def test_an_old_machine_json_gives_its_last_part_the_top_level_machine(self):
         old = {"cpu_vendor": "AuthenticAMD", "cpu_model": "AMD EPYC", "cpu_family": 26, "cpu_model_number": 2,
                "logical_cpus": 2, "memory_bytes": 1,
