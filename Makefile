@@ -13,6 +13,7 @@
 #   make test-portable             -march=x86-64-v2 build: no AVX-512, same results (build-portable/)
 #   make run ARGS="..."            run `sphnl run ARGS`
 #   make replicate A=results/x B=results/y   compare two runs claim by claim -> B/replication.md|json
+#   make resume RUN=results/<run-id> [ONLY=ids] [MAX_N=n]   finish a run with the revision that began it
 
 # Debian's interpreter: it can import python3-numpy/pandas/matplotlib/scipy,
 # while the first python3 on PATH may be a pyenv one that cannot.
@@ -45,7 +46,7 @@ COUNTERS_BUILD ?= build-counters
 # double CI time while exercising the same code the other tests cover.
 SANITIZE_SKIP ?= ^Precision/Validation\.
 
-.PHONY: all deps configure build test test-cpp test-python test-sanitize test-portable reproduce ablations figures bench compare run replicate clean counters-build
+.PHONY: all deps configure build test test-cpp test-python test-sanitize test-portable reproduce resume ablations figures bench compare run replicate clean counters-build
 
 all: build
 
@@ -105,6 +106,13 @@ ablations: build
 
 figures: deps
 	$(PYTHON) -m plots.report $(RESULTS)
+
+# A run made in parts, resumed after this checkout moved on: that revision is
+# checked out and built in build-rev-<rev>/, measures, and today's plots draw.
+resume: deps
+	@test -n "$(RUN)" || { echo "sphnl: make resume needs the run folder: make resume RUN=results/<run-id> [ONLY=fig14,fig16] [MAX_N=n]" >&2; exit 2; }
+	$(PYTHON) -m experiments.resume_run "$(RUN)" --python $(PYTHON) --jobs $(JOBS) $(if $(ONLY),--only $(ONLY)) $(if $(MAX_N),--max-n $(MAX_N))
+	$(PYTHON) -m plots.report "$(RUN)"
 
 replicate: deps
 	@test -n "$(A)" -a -n "$(B)" || { echo "sphnl: make replicate needs two run folders: make replicate A=results/<run> B=results/<other run>" >&2; exit 2; }
