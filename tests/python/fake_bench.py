@@ -18,6 +18,8 @@ Test knobs (flag or environment variable):
   --fake-error K:V       FAKE_BENCH_ERROR    report configs with segment K:V as errors
   --fake-fail            FAKE_BENCH_FAIL=1   write half the output, then exit 1
   --fake-delay S         FAKE_BENCH_DELAY    sleep S seconds per benchmark
+  --fake-snapshot S      FAKE_BENCH_SNAPSHOT report (without spending it) S seconds of
+                                             snapshot development, as sphnl_bench does
 """
 import argparse
 import json
@@ -106,6 +108,7 @@ def parse_args(argv):
     p.add_argument("--fake-error", default=env("FAKE_BENCH_ERROR", ""))
     p.add_argument("--fake-fail", action="store_true", default=env("FAKE_BENCH_FAIL") == "1")
     p.add_argument("--fake-delay", type=float, default=float(env("FAKE_BENCH_DELAY", "0")))
+    p.add_argument("--fake-snapshot", type=float, default=float(env("FAKE_BENCH_SNAPSHOT", "0")))
     return p.parse_args(argv)
 
 
@@ -125,6 +128,8 @@ def main(argv=None):
     errs = set(filter(None, args.fake_error.split(",")))
     print(f"Running {sys.argv[0]}\nRun on (2 X 2600 MHz CPU s)\n"
           "***WARNING*** Library was built as DEBUG. Timings may be affected.", file=sys.stderr)
+    if args.fake_snapshot:
+        print(f"sphnl_bench: developed in 100 steps, {args.fake_snapshot:.1f} s wall", file=sys.stderr, flush=True)
     print(f"{GB_LINE}\n{'Benchmark':<60}{'Time':>13}{'CPU':>13} Iterations UserCounters...\n{GB_LINE}",
           flush=True)
     points = R.sweep_points(exp, size)

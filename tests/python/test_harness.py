@@ -562,6 +562,14 @@ class TestProvenance(TempDirCase):
         # a part recorded before parts carried their machine is not refused for it
         self.assertIsNone(M.merge_refusal([part], {**part, "machine": intel}))
 
+    def test_snapshot_development_is_recorded_and_not_charged_to_the_budget(self):
+        out, _ = fake_run(self.tmp, "tiny", "--only", "table1", env={"FAKE_BENCH_SNAPSHOT": "123.4"})
+        rounds = read_doc(out / "table1.json")["sphnl_rounds"]
+        self.assertEqual([r["snapshot_s"] for r in rounds], [123.4] * len(rounds))
+        self.assertEqual(run.measuring_seconds(300.0, [{"snapshot_s": 240.0}, {"snapshot_s": 0.0}]), 60.0)
+        self.assertEqual(run.measuring_seconds(10.0, [{"snapshot_s": 12.0}]), 0.0)  # clock granularity
+        self.assertEqual(run.measuring_seconds(10.0, [{"round": 0}]), 10.0)  # a record without the field
+
     def test_under_load_is_decided_by_what_others_used_during_the_round(self):
         quiet = {"loadavg_before": [0.7, 1.2, 1.6], "loadavg_after": [1.6, 1.5, 1.6],
                  "other_busy_cores": 0.0, "steal_pct": 0.01, "under_load": True}
