@@ -10,8 +10,8 @@ by other code. Once this checkout holds newer commits, `make reproduce` can
 no longer finish such a run. This script reads the revision every part of
 the folder was measured with (machine.json), checks that revision out in a
 git worktree of its own (build-rev-<revision>/tree, beside the other
-build-* folders), builds its bench and `sphnl` there with the flags of
-`make build`, and runs that revision's experiments/run.py into the same
+build-* folders), configures it with that revision's own `make configure`,
+builds its bench and `sphnl`, and runs that revision's experiments/run.py into the same
 folder. The bench embeds its revision and no path, so a rebuild of the same
 revision by the same compiler for the same CPU is the same binary; where it
 is not, this stops before measuring (run.py would refuse the part). The
@@ -90,8 +90,9 @@ def git(*args, cwd=REPO, check=True):
 
 
 def plan(args):
-    """The commands that resume the run, as (description, argv, cwd) triples,
-    and the folders they use."""
+    """The commands that resume the run: the build steps and then the
+    measurement, each a (description, argv, cwd) triple, and the folders
+    they use."""
     revision, size, parts = run_revision(args.run_dir)
     if git("cat-file", "-e", f"{revision}^{{commit}}", check=False).returncode:
         raise ResumeError(f"revision {revision[:12]} (every part of {args.run_dir}) is not in this repository; "
@@ -102,9 +103,10 @@ def plan(args):
     steps = []
     if not tree.exists():
         steps.append((f"check out {revision[:12]}", ["git", "worktree", "add", "--detach", str(tree), revision], REPO))
-    steps.append(("configure as `make build` does",
-                  ["cmake", "-S", str(tree), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release",
-                   f"-DPython3_EXECUTABLE={args.python}"], REPO))
+    # That revision's own configure rule, so its build flags are the ones it
+    # was measured with, whatever today's Makefile passes.
+    steps.append(("configure with that revision's `make configure`",
+                  ["make", "-C", str(tree), "configure", f"BUILD={build}", f"PYTHON={args.python}"], REPO))
     steps.append(("build the bench and sphnl",
                   ["cmake", "--build", str(build), "-j", str(args.jobs), "--target", "sphnl_bench", "sphnl"], REPO))
     run = [args.python, "-m", "experiments.run", "--size", size, "--run-id", run_dir.name,
@@ -122,8 +124,8 @@ def plan(args):
         run += ["--only", args.only]
     if args.max_n is not None:
         run += ["--max-n", str(args.max_n)]
-    steps.append((f"measure with {revision[:12]}'s experiments/run.py", run, tree))
-    return revision, parts, tree, build, steps
+    measure = (f"measure with {revision[:12]}'s experiments/run.py", run, tree)
+    return revision, parts, tree, build, steps, measure
 
 
 def check_tree(tree, revision):
@@ -147,26 +149,30 @@ def check_bench(bench, parts):
                           "another CPU; measure into a new run folder on the machine that made it")
 
 
+def run_step(step, dry_run):
+    what, argv, cwd = step
+    print(f"resume: {what}: {shlex.join(argv)}" + (f"  (in {cwd})" if cwd != REPO else ""), flush=True)
+    if not dry_run:
+        code = subprocess.run(argv, cwd=cwd).returncode
+        if code:
+            raise ResumeError(f"{what} failed (exit code {code})")
+
+
 def main(argv=None):
     args = parse_args(argv)
     try:
-        revision, parts, tree, build, steps = plan(args)
+        revision, parts, tree, build, steps, measure = plan(args)
         if tree.exists():
             check_tree(tree, revision)
-        for what, argv_, cwd in steps:
-            print(f"resume: {what}: {shlex.join(argv_)}" + (f"  (in {cwd})" if cwd != REPO else ""), flush=True)
-            if args.dry_run:
-                continue
-            if argv_[1:2] == ["-m"]:  # the measurement: first the binary check
-                check_bench(build / "benchmarks" / "sphnl_bench", parts)
-            code = subprocess.run(argv_, cwd=cwd).returncode
-            if code:
-                raise ResumeError(f"{what} failed (exit code {code})")
+        for step in steps:
+            run_step(step, args.dry_run)
+        if not args.dry_run:
+            check_bench(build / "benchmarks" / "sphnl_bench", parts)
+        run_step(measure, args.dry_run)
     except ResumeError as e:
         print(f"resume_run: {e}", file=sys.stderr)
         return 2
     return 0
-
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -68,7 +68,7 @@ class TestResumeRun(unittest.TestCase):
         if not existed:
             self.assertIn(f"git worktree add --detach {home / 'tree'} {HEAD}", out)
             self.assertFalse(home.exists())
-        self.assertIn(f"cmake -S {home / 'tree'} -B {home / 'build'} -DCMAKE_BUILD_TYPE=Release", out)
+        self.assertIn(f"make -C {home / 'tree'} configure BUILD={home / 'build'} PYTHON=/usr/bin/python3", out)
         self.assertIn("--target sphnl_bench sphnl", out)
         self.assertIn("-j 3", out)
         run = next(line for line in out.splitlines() if "experiments.run" in line)
