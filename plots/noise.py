@@ -37,12 +37,10 @@ import pandas as pd
 
 from harness import stats as S
 from harness.fsio import write_atomic
-from harness.results import ResultsError, entry_rows, param_columns, parse_value, read_benchmark_json
+from harness.results import BOOKKEEPING, ResultsError, entry_rows, param_columns, parse_value, read_benchmark_json
 
 WITNESSES = ("witness_core_gflops", "witness_mem_gbps")
 TARGET_HALFWIDTH_PCT = 2.0
-# parameters of a name that describe the run, not the configuration
-NOT_CONFIG = {"repetition_index", "round", "run_sequence"}
 
 
 def load(path, metric=None):
@@ -64,7 +62,7 @@ def load(path, metric=None):
 
 
 def config_columns(df):
-    return [c for c in param_columns(df) if c not in NOT_CONFIG]
+    return [c for c in param_columns(df) if c not in BOOKKEEPING]
 
 
 def scatter(df):
