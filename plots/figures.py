@@ -39,6 +39,8 @@ N_LABEL = "N (particles)"
 NS_LABEL = "$n_s$ (steps a Verlet list is kept)"
 MARKERS = "osD^vx*"
 RESAMPLES = 100  # bootstrap replicates per figure; plots/report.py sets it from --resamples
+# Set by plots/report.py when the times it passes are drift-corrected (harness/drift.py).
+DRIFT_NOTE = ""
 
 
 class NoData(Exception):
@@ -93,6 +95,11 @@ def _med(data, **equal):
         times = data["flow_time"].dropna().unique()
         equal.setdefault("flow_time", min(times, key=lambda t: abs(t - 0.35)))
     return Med(S.RoundBootstrap(data, resamples=RESAMPLES)).where(**equal)
+
+
+def _footnote(fig, what):
+    fig.text(0.99, -0.01, f"medians{DRIFT_NOTE}; {what}: 95 % bootstrap intervals (paired by round)",
+             ha="right", va="top", fontsize=7, color="0.4")
 
 
 def _plain(label):
@@ -156,8 +163,7 @@ def _draw(out, fig_id, title, xlabel, panels):
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.legend()
     fig.suptitle(title)
-    fig.text(0.99, -0.01, "medians; bars and bands: 95 % bootstrap intervals (paired by round)",
-             ha="right", va="top", fontsize=7, color="0.4")
+    _footnote(fig, "bars and bands")
     _save(fig, out, fig_id)
 
 
@@ -610,8 +616,7 @@ def beyond_mpi(data, out):
             ax.legend()
     fig.suptitle("Beyond the paper: CLL and VL$_X$ ($n_s$ = 7) on ranks and threads "
                  "(windows from t = 0, slowest rank)")
-    fig.text(0.99, -0.01, "medians; bars: 95 % bootstrap intervals (paired by round)",
-             ha="right", va="top", fontsize=7, color="0.4")
+    _footnote(fig, "bars")
     _save(fig, out, "beyond_mpi")
     parts = []
     if speed:

@@ -23,6 +23,7 @@ import sys
 
 import numpy as np
 
+from harness import drift as D
 from harness import machine as M
 from harness import stats as S
 from harness.fsio import write_atomic
@@ -324,8 +325,27 @@ def figure_of(exp):
     return exp["figure"] or exp["id"]
 
 
-def build(run_dir, exp_dir, resamples=None):
-    """Draw everything; return (markdown of REPRODUCTION.md, claims.json records, verdict counts, drawn, skipped)."""
+def drift_section(summary):
+    """Lines on the drift correction of each experiment (harness/drift.py)."""
+    lines = []
+    for exp, d in summary.items():
+        if not d["repetitions"]:
+            lines.append(f"- `{exp}`: no run order recorded; times as measured")
+        elif d["window"] is None:
+            lines.append(f"- `{exp}`: left as measured (no window reduced the scatter of "
+                         f"{d['scatter_pct_before']:.1f} %)" if math.isfinite(d["scatter_pct_before"])
+                         else f"- `{exp}`: left as measured (too few repetitions per round)")
+        else:
+            lines.append(f"- `{exp}`: {d['window']} neighbour(s) on each side; scatter of the "
+                         f"residuals {d['scatter_pct_before']:.1f} % → {d['scatter_pct_after']:.1f} % "
+                         f"({d['repetitions']} repetitions)")
+    return lines
+
+
+def build(run_dir, exp_dir, resamples=None, drift=True):
+    """Draw everything; return (markdown of REPRODUCTION.md, claims.json records, verdict counts, drawn, skipped).
+    drift: divide the machine's drift inside each round out of the times
+    (harness/drift.py) before any median, interval or verdict."""
     experiments = load_experiments(exp_dir)
     for exp in experiments.values():
         for c in exp["claims"]:
@@ -335,6 +355,10 @@ def build(run_dir, exp_dir, resamples=None):
     if problems:
         raise ResultsError("explanations that name what does not exist:\n  " + "\n  ".join(problems))
     df = load_run(run_dir)
+    drift_summary = None
+    if drift:
+        df, drift_summary = D.corrected(df)
+    F.DRIFT_NOTE = " of drift-corrected times" if drift else ""
     machine_lines, machine = machine_section(run_dir)
     round_lines, flagged = rounds_section(run_dir)
     figs_dir = run_dir / "figures"
@@ -397,6 +421,12 @@ def build(run_dir, exp_dir, resamples=None):
             f"interval ({resamples} replicates; rounds drawn with replacement, then the repetitions inside "
             "each, with the same draw of rounds for every configuration, so that A and B of one round form "
             "one ratio). Figures draw the same intervals as error bars and bands.",
+            ("- Drift correction: each repetition's times are divided by the machine's drift at that "
+             "moment, estimated from the residuals of the repetitions that ran next to it in the same "
+             "round (its own left out; the configurations are interleaved at random, so its neighbours "
+             "are other configurations); see \"Drift correction\" below and `harness/drift.py`. The "
+             "raw times stay in the results files."
+             if drift else "- Times as measured: drift correction was turned off (`--no-drift-correction`)."),
             "- A configuration measured in several experiments is pooled: every claim that uses it reads all "
             "its repetitions, and the note lists the value each experiment gives alone.",
             "- Where an experiment measures several flow states (`flow_time`), the claim is the mean over "
@@ -417,6 +447,12 @@ def build(run_dir, exp_dir, resamples=None):
             ", ".join(f"{counts.get(v, 0)} {v}" for v in VERDICTS) + f" (of {len(results)} claims); "
             f"{len(figures)} figures and tables drawn, {len(skipped)} skipped.", ""]
     out += ["Targets:", ""] + targets([r for _, r in results]) + [""]
+    if drift_summary is not None:
+        out += ["## Drift correction", "",
+                "Scatter: standard deviation of the repetitions' log-time residuals (about their "
+                "configuration's mean) before and after dividing out the drift estimated from their "
+                "neighbours in run order; the window is the one that leaves the least.", ""]
+        out += drift_section(drift_summary) + [""]
     out += ["## Figures", ""]
     for exp, sentence in figures:
         out += [f"### {figure_of(exp)}: {exp['title']}", ""]
@@ -453,11 +489,15 @@ def main(argv=None):
     p.add_argument("--publish", type=pathlib.Path, metavar="FILE",
                    help="also write the report to FILE (e.g. results/REPRODUCTION.md, the "
                         "reference copy), its figure links rewritten to point into the run folder")
+    p.add_argument("--no-drift-correction", action="store_true",
+                   help="use the times as measured, without dividing out the machine's drift inside "
+                        "a round (harness/drift.py)")
     args = p.parse_args(argv)
     if args.resamples is not None and args.resamples < 50:
         p.error(f"--resamples {args.resamples}: a 95 % percentile interval needs at least 50 replicates")
     try:
-        text, records, counts, drawn, skipped = build(args.results_dir, args.experiments_dir, args.resamples)
+        text, records, counts, drawn, skipped = build(args.results_dir, args.experiments_dir, args.resamples,
+                                                       drift=not args.no_drift_correction)
     except ResultsError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

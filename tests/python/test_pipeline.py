@@ -107,6 +107,10 @@ class TinyPipeline(unittest.TestCase):
             reproduction = (run_dir / "REPRODUCTION.md").read_text(encoding="utf-8")
             self.assertIn("| Figure | Claim | Paper | Measured [95 % interval] | Verdict | Note |", reproduction)
             self.assertIn(str(run_dir), reproduction)
+            # every measured experiment says how its drift was treated
+            drift = reproduction.split("## Drift correction", 1)[1].split("\n## ", 1)[0]
+            for exp_id in ran:
+                self.assertIn(f"- `{exp_id}`: ", drift)
             claims = json.loads((run_dir / "claims.json").read_text(encoding="utf-8"))
             ids = {c["id"] for e in experiments for c in json.loads(
                 (ROOT / "experiments" / f"{e}.json").read_text(encoding="utf-8"))["claims"]}

@@ -1,0 +1,131 @@
+"""The machine's drift inside a round, estimated from the repetitions that ran
+next to each one and divided out of its times (docs/MEASUREMENT.md, "Drift
+correction").
+
+On the shared VMs sphnl is measured on, identical repetitions inside one
+round scatter by 3-6 %, successive repetitions in run order are correlated
+(lag-1 autocorrelation 0.2-0.5) and follow the machine witness: the machine
+speeds up and slows down over seconds to minutes, for every configuration
+alike. Pairing A and B by round does not cancel that; pairing each
+repetition with its neighbours in run order does (plots/noise.py measures
+both). Because the bench interleaves the configurations of a round at
+random, the neighbours of a repetition are a random mix of configurations,
+so their residuals (log time minus their own configuration's mean) measure
+the machine's state at that moment and nothing about the configuration in
+between. Each repetition's times are divided by exp(mean residual of its k
+neighbours on each side, itself left out): a leave-one-out estimate, so a
+repetition's own noise never corrects itself, and in expectation the
+correction is 1 for every configuration (no ratio is biased, only its
+scatter shrinks).
+
+The window k is chosen per experiment as the one (of WINDOWS, or none) that
+leaves the smallest scatter of the corrected residuals, a held-out measure
+since each estimate excludes the value it corrects. An experiment whose
+repetitions carry no run order (results measured before the protocol), or
+where no window beats leaving the times alone, is left as measured.
+The raw values stay in the results files; this is a derived view.
+"""
+import math
+
+import numpy as np
+
+from harness.results import BOOKKEEPING, param_columns
+
+WINDOWS = (1, 2, 4, 8, 16)       # neighbours on each side of a repetition
+RESIDUAL_OF = "real_time_s"      # every family's timed window
+# Columns that scale with the machine's speed: times are divided by the
+# factor, rates multiplied. Witnesses, counts, bytes and fractions are left alone.
+TIME_PREFIX = "s_"
+TIME_COLUMNS = ("real_time_s", "cpu_time_s")
+RATE_COLUMNS = ("pairs_per_s", "entries_per_s", "force_gflops", "force_peak_fraction")
+FACTOR = "drift_factor"          # the factor divided out, kept as a column of the view
+
+
+def time_columns(rows):
+    return [c for c in rows.columns if (c in TIME_COLUMNS or c.startswith(TIME_PREFIX))
+            and rows[c].dtype.kind == "f"]
+
+
+def rate_columns(rows):
+    return [c for c in RATE_COLUMNS if c in rows.columns and rows[c].dtype.kind == "f"]
+
+
+def neighbour_mean(values, k):
+    """Leave-one-out mean of up to k values on each side of every position."""
+    values = np.asarray(values, float)
+    n = values.size
+    if n < 2:
+        return np.zeros(n)
+    csum = np.concatenate([[0.0], np.cumsum(values)])
+    idx = np.arange(n)
+    lo, hi = np.maximum(0, idx - k), np.minimum(n, idx + k + 1)
+    total = csum[hi] - csum[lo] - values
+    return total / (hi - lo - 1)
+
+
+def _residuals(rows):
+    """log RESIDUAL_OF minus the mean over its configuration's repetitions."""
+    keys = [c for c in param_columns(rows) if c not in BOOKKEEPING]
+    log_t = np.log(rows[RESIDUAL_OF].astype(float))
+    return log_t - log_t.groupby([rows[k] for k in keys], dropna=False).transform("mean")
+
+
+def _estimates(rows, resid, k):
+    """The leave-one-out drift estimate of every row (aligned with rows)."""
+    est = np.zeros(len(rows))
+    order = rows.assign(_r=resid.to_numpy(), _i=np.arange(len(rows))).sort_values("run_sequence")
+    for _, one in order.groupby("round", sort=False):
+        est[one["_i"].to_numpy()] = neighbour_mean(one["_r"].to_numpy(), k)
+    return est
+
+
+def usable(rows):
+    """Rows of one experiment the correction can use: measured with a run
+    order, without error, with a positive time."""
+    if "run_sequence" not in rows or RESIDUAL_OF not in rows:
+        return rows.iloc[0:0]
+    ok = ~rows["error_occurred"].astype(bool) & rows["run_sequence"].notna()
+    t = rows[RESIDUAL_OF].astype(float)
+    return rows[ok & np.isfinite(t) & (t > 0)]
+
+
+def choose_window(rows, windows=WINDOWS):
+    """(k or None, {k: scatter %}) for one experiment's rows: the scatter is
+    the standard deviation, in percent, of the residuals left after dividing
+    by the window's estimate (None: no correction)."""
+    rows = usable(rows)
+    if len(rows) < 4 or rows["round"].value_counts().max() < 3:
+        return None, {}
+    resid = _residuals(rows)
+    scatter = {None: 100.0 * float(np.std(resid))}
+    for k in windows:
+        scatter[k] = 100.0 * float(np.std(resid.to_numpy() - _estimates(rows, resid, k)))
+    best = min(scatter, key=lambda k: (scatter[k], k is not None))
+    return best, scatter
+
+
+def corrected(rows, windows=WINDOWS):
+    """(rows with every time divided by its drift factor and every rate
+    multiplied by it, {experiment: {"window", "scatter_pct_before",
+    "scatter_pct_after", "repetitions"}}). Rows the correction cannot use keep
+    their values and a factor of 1."""
+    out = rows.copy()
+    out[FACTOR] = 1.0
+    summary = {}
+    if out.empty or "experiment" not in out:
+        return out, summary
+    times, rates = time_columns(out), rate_columns(out)
+    for exp, part in out.groupby("experiment", sort=True):
+        k, scatter = choose_window(part, windows)
+        entry = {"window": k, "scatter_pct_before": scatter.get(None, math.nan),
+                 "scatter_pct_after": scatter.get(k, math.nan), "repetitions": int(len(usable(part)))}
+        summary[exp] = entry
+        if k is None:
+            continue
+        use = usable(part)
+        factor = np.exp(_estimates(use, _residuals(use), k))
+        out.loc[use.index, FACTOR] = factor
+        out.loc[use.index, times] = use[times].to_numpy(float) / factor[:, None]
+        if rates:
+            out.loc[use.index, rates] = use[rates].to_numpy(float) * factor[:, None]
+    return out, summary
