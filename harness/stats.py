@@ -17,7 +17,8 @@ Two levels of resampling, matching how sphnl_bench measures (docs/CONTRACTS.md):
   round*: each replicate draws the rounds of each experiment with
   replacement (the same draw for every configuration, so A and B measured in
   the same round stay together and drift between rounds cancels in A / B),
-  then the repetitions inside each drawn round. Any statistic of the
+  then the repetitions inside each drawn round. A configuration that
+  several experiments measured gets the mean of their medians. Any statistic of the
   per-configuration medians (a ratio, an improvement, a fitted exponent, a
   fraction of points) is evaluated on every replicate; its interval is the
   2.5 and 97.5 percentiles. Exponents thus resample each N's point from its
@@ -114,7 +115,12 @@ class RoundBootstrap:
                             "error_message", "error_occurred"}
         self.numeric = [c for c in ok.columns if c not in skip and ok[c].dtype.kind in "iuf"]
         grouped = ok.groupby(keys, dropna=False, sort=True)
-        med = grouped[self.numeric].median().reset_index()
+        # A configuration measured by several experiments: the mean of each
+        # experiment's median. The median of all its repetitions would pick
+        # the boundary between two experiments measured at different machine
+        # speeds, moving a ratio outside every experiment's own value.
+        med = (ok.groupby(keys + [STRATUM], dropna=False, sort=True)[self.numeric].median()
+               .groupby(level=list(range(len(keys))), dropna=False, sort=True).mean().reset_index())
         for col in keys:  # integer axes read as float where other families lack them
             if med[col].dtype == float and med[col].notna().all() and (med[col] % 1 == 0).all():
                 med[col] = med[col].astype(int)
@@ -158,10 +164,15 @@ class RoundBootstrap:
             pos = table[slot[..., None], pick]                        # (B, R, width)
             v = values[pos]                                           # (B, R, width, C)
             v[c == 0] = np.nan                                        # a round without this configuration
-            v = v.reshape(self.resamples, -1, len(self.numeric))
             with warnings.catch_warnings():  # all-NaN slices (no such round drawn) stay NaN
                 warnings.simplefilter("ignore", RuntimeWarning)
-                out[:, g, :] = np.nanmedian(v, axis=1)
+                per_stratum, start = [], 0   # each experiment's median, then their mean
+                for s in mine:
+                    part = v[:, start:start + len(strata[s])]
+                    per_stratum.append(np.nanmedian(part.reshape(self.resamples, -1, len(self.numeric)),
+                                                    axis=1))
+                    start += len(strata[s])
+                out[:, g, :] = np.nanmean(np.stack(per_stratum), axis=0)
         return out
 
     # ------------------------------------------------------------ evaluation
