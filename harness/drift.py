@@ -12,8 +12,10 @@ both). Because the bench interleaves the configurations of a round at
 random, the neighbours of a repetition are a random mix of configurations,
 so their residuals (log time minus their own configuration's mean) measure
 the machine's state at that moment and nothing about the configuration in
-between. Each repetition's times are divided by exp(mean residual of its k
-neighbours on each side, itself left out): a leave-one-out estimate, so a
+between. The configuration's mean is taken over every experiment of the run
+that measured it, so an experiment measured while the machine was slower is
+levelled with the others as rounds are. Each repetition's times are divided
+by exp(mean residual of its k neighbours on each side, itself left out): a leave-one-out estimate, so a
 repetition's own noise never corrects itself, and in expectation the
 correction is 1 for every configuration (no ratio is biased, only its
 scatter shrinks).
@@ -28,6 +30,7 @@ The raw values stay in the results files; this is a derived view.
 import math
 
 import numpy as np
+import pandas as pd
 
 from harness.results import BOOKKEEPING, param_columns
 
@@ -64,8 +67,11 @@ def neighbour_mean(values, k):
 
 
 def _residuals(rows):
-    """log RESIDUAL_OF minus the mean over its configuration's repetitions."""
-    keys = [c for c in param_columns(rows) if c not in BOOKKEEPING]
+    """log RESIDUAL_OF minus the mean over its configuration's repetitions in
+    every experiment of `rows` that measured it: an experiment measured while
+    the machine was slower has positive residuals, and is brought to the
+    common level as its rounds are."""
+    keys = [c for c in param_columns(rows) if c not in BOOKKEEPING and c != "experiment"]
     log_t = np.log(rows[RESIDUAL_OF].astype(float))
     return log_t - log_t.groupby([rows[k] for k in keys], dropna=False).transform("mean")
 
@@ -89,14 +95,15 @@ def usable(rows):
     return rows[ok & np.isfinite(t) & (t > 0)]
 
 
-def choose_window(rows, windows=WINDOWS):
+def choose_window(rows, windows=WINDOWS, resid=None):
     """(k or None, {k: scatter %}) for one experiment's rows: the scatter is
     the standard deviation, in percent, of the residuals left after dividing
-    by the window's estimate (None: no correction)."""
+    by the window's estimate (None: no correction). `resid`: the residuals
+    of usable(rows) where they were taken over a larger set (corrected)."""
     rows = usable(rows)
     if len(rows) < 4 or rows["round"].value_counts().max() < 3:
         return None, {}
-    resid = _residuals(rows)
+    resid = _residuals(rows) if resid is None else resid.loc[rows.index]
     scatter = {None: 100.0 * float(np.std(resid))}
     for k in windows:
         scatter[k] = 100.0 * float(np.std(resid.to_numpy() - _estimates(rows, resid, k)))
@@ -109,21 +116,23 @@ def corrected(rows, windows=WINDOWS):
     multiplied by it, {experiment: {"window", "scatter_pct_before",
     "scatter_pct_after", "repetitions"}}). Rows the correction cannot use keep
     their values and a factor of 1."""
-    out = rows.copy()
+    out = rows.copy() if rows.index.is_unique else rows.reset_index(drop=True)
     out[FACTOR] = 1.0
     summary = {}
     if out.empty or "experiment" not in out:
         return out, summary
     times, rates = time_columns(out), rate_columns(out)
-    for exp, part in out.groupby("experiment", sort=True):
-        k, scatter = choose_window(part, windows)
+    parts = {exp: usable(part) for exp, part in out.groupby("experiment", sort=True)}
+    measured = [p for p in parts.values() if len(p)]
+    resid = _residuals(pd.concat(measured)) if measured else None
+    for exp, use in parts.items():
+        k, scatter = choose_window(use, windows, resid)
         entry = {"window": k, "scatter_pct_before": scatter.get(None, math.nan),
-                 "scatter_pct_after": scatter.get(k, math.nan), "repetitions": int(len(usable(part)))}
+                 "scatter_pct_after": scatter.get(k, math.nan), "repetitions": int(len(use))}
         summary[exp] = entry
         if k is None:
             continue
-        use = usable(part)
-        factor = np.exp(_estimates(use, _residuals(use), k))
+        factor = np.exp(_estimates(use, resid.loc[use.index], k))
         out.loc[use.index, FACTOR] = factor
         out.loc[use.index, times] = use[times].to_numpy(float) / factor[:, None]
         if rates:

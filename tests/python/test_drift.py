@@ -58,6 +58,16 @@ class DriftTest(unittest.TestCase):
         med = out.groupby("cfg")["s_per_step"].median()
         self.assertAlmostEqual(med["c1"] / med["c0"], 0.9, delta=0.01)
 
+    def test_an_experiment_measured_on_a_slower_machine_is_levelled(self):
+        # The same 20 configurations in two experiments, the second measured
+        # 10 % slower throughout: its configurations are brought to the first's level.
+        one = experiment(np.random.default_rng(8), sd_white=0.01, name="one")
+        two = one.assign(experiment="two", real_time_s=1.1 * one["real_time_s"],
+                         s_per_step=1.1 * one["s_per_step"])
+        out, _ = D.corrected(pd.concat([one, two], ignore_index=True))
+        med = out.groupby(["experiment", "cfg"])["s_per_step"].median().unstack("experiment")
+        self.assertLess(abs(np.median(med["two"] / med["one"]) - 1.0), 0.03)
+
     def test_rows_without_run_order_or_with_errors(self):
         rows = experiment(np.random.default_rng(6), configs=8)
         old = rows.drop(columns=["run_sequence"]).assign(experiment="old")
@@ -89,6 +99,7 @@ class ReportSectionTest(unittest.TestCase):
         rows = experiment(np.random.default_rng(3), configs=20, reps=5, rounds=4, sd_white=0.01)
         flat = experiment(np.random.default_rng(4), configs=20, reps=10, rounds=3, sd_round=0.0,
                           sd_drift=0.0, rho=0.0, sd_white=0.03, name="flat")
+        flat["cfg"] = "flat " + flat["cfg"]  # other configurations than x's
         old = rows.drop(columns=["run_sequence"]).assign(experiment="old")
         _, summary = D.corrected(pd.concat([rows, flat, old], ignore_index=True))
         lines = report.drift_section(summary)
