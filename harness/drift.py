@@ -12,13 +12,17 @@ both). Because the bench interleaves the configurations of a round at
 random, the neighbours of a repetition are a random mix of configurations,
 so their residuals (log time minus their own configuration's mean) measure
 the machine's state at that moment and nothing about the configuration in
-between. The configuration's mean is taken over every experiment of the run
-that measured it, so an experiment measured while the machine was slower is
-levelled with the others as rounds are. Each repetition's times are divided
-by exp(mean residual of its k neighbours on each side, itself left out): a leave-one-out estimate, so a
+between. Each repetition's times are divided by exp(mean residual of its k
+neighbours on each side, itself left out): a leave-one-out estimate, so a
 repetition's own noise never corrects itself, and in expectation the
 correction is 1 for every configuration (no ratio is biased, only its
 scatter shrinks).
+
+Between experiments, measured hours apart, the machine's level differs too,
+and a configuration several experiments measured is pooled: each
+experiment's times are then divided by its level against the others, the
+median over the configurations it shares of its median over their mean
+(`levels`; no ratio inside an experiment changes).
 
 The window k is chosen per experiment as the one (of WINDOWS, or none) that
 leaves the smallest scatter of the corrected residuals, a held-out measure
@@ -35,7 +39,10 @@ import pandas as pd
 from harness.results import BOOKKEEPING, param_columns
 
 WINDOWS = (1, 2, 4, 8, 16)       # neighbours on each side of a repetition
-RESIDUAL_OF = "real_time_s"      # every family's timed window
+# The time whose residuals measure the machine: per step where the family
+# has steps (experiments time windows of different lengths, 10 to 84 steps,
+# and pool their configurations per step), else the timed call.
+PER_STEP, RESIDUAL_OF = "s_per_step", "real_time_s"
 # Columns that scale with the machine's speed: times are divided by the
 # factor, rates multiplied. Witnesses, counts, bytes and fractions are left alone.
 TIME_PREFIX = "s_"
@@ -66,13 +73,15 @@ def neighbour_mean(values, k):
     return total / (hi - lo - 1)
 
 
+def _config_keys(rows):
+    return [c for c in param_columns(rows) if c not in BOOKKEEPING and c != "experiment"]
+
+
 def _residuals(rows):
-    """log RESIDUAL_OF minus the mean over its configuration's repetitions in
-    every experiment of `rows` that measured it: an experiment measured while
-    the machine was slower has positive residuals, and is brought to the
-    common level as its rounds are."""
-    keys = [c for c in param_columns(rows) if c not in BOOKKEEPING and c != "experiment"]
-    log_t = np.log(rows[RESIDUAL_OF].astype(float))
+    """log time minus the mean over its configuration's repetitions (in `rows`:
+    one experiment's)."""
+    keys = _config_keys(rows)
+    log_t = np.log(_time(rows))
     return log_t - log_t.groupby([rows[k] for k in keys], dropna=False).transform("mean")
 
 
@@ -85,25 +94,32 @@ def _estimates(rows, resid, k):
     return est
 
 
+def _time(rows):
+    t = rows[RESIDUAL_OF].astype(float)
+    if PER_STEP in rows:
+        per_step = rows[PER_STEP].astype(float)
+        t = per_step.where(np.isfinite(per_step) & (per_step > 0), t)
+    return t
+
+
 def usable(rows):
     """Rows of one experiment the correction can use: measured with a run
     order, without error, with a positive time."""
     if "run_sequence" not in rows or RESIDUAL_OF not in rows:
         return rows.iloc[0:0]
     ok = ~rows["error_occurred"].astype(bool) & rows["run_sequence"].notna()
-    t = rows[RESIDUAL_OF].astype(float)
+    t = _time(rows)
     return rows[ok & np.isfinite(t) & (t > 0)]
 
 
-def choose_window(rows, windows=WINDOWS, resid=None):
+def choose_window(rows, windows=WINDOWS):
     """(k or None, {k: scatter %}) for one experiment's rows: the scatter is
     the standard deviation, in percent, of the residuals left after dividing
-    by the window's estimate (None: no correction). `resid`: the residuals
-    of usable(rows) where they were taken over a larger set (corrected)."""
+    by the window's estimate (None: no correction)."""
     rows = usable(rows)
     if len(rows) < 4 or rows["round"].value_counts().max() < 3:
         return None, {}
-    resid = _residuals(rows) if resid is None else resid.loc[rows.index]
+    resid = _residuals(rows)
     scatter = {None: 100.0 * float(np.std(resid))}
     for k in windows:
         scatter[k] = 100.0 * float(np.std(resid.to_numpy() - _estimates(rows, resid, k)))
@@ -111,30 +127,65 @@ def choose_window(rows, windows=WINDOWS, resid=None):
     return best, scatter
 
 
+def levels(rows):
+    """{experiment: log factor} that brings each experiment to the common
+    level of the configurations it shares with others: the median, over
+    those configurations, of the log of its median over the mean of every
+    experiment's log median. 0 for an experiment that shares none."""
+    use = rows[~rows["error_occurred"].astype(bool)]
+    t = _time(use)
+    use = use[np.isfinite(t) & (t > 0)]
+    if use.empty:
+        return {}
+    keys = _config_keys(use)
+    log_med = np.log(_time(use)).groupby([use[k] for k in keys] + [use["experiment"]],
+                                         dropna=False).median()
+    table = log_med.unstack("experiment")
+    shared = table[table.notna().sum(axis=1) > 1]
+    if shared.empty:
+        return {e: 0.0 for e in table.columns}
+    offset = shared.sub(shared.mean(axis=1), axis=0)
+    return {e: (float(offset[e].median()) if offset[e].notna().any() else 0.0) for e in table.columns}
+
+
 def corrected(rows, windows=WINDOWS):
     """(rows with every time divided by its drift factor and every rate
     multiplied by it, {experiment: {"window", "scatter_pct_before",
-    "scatter_pct_after", "repetitions"}}). Rows the correction cannot use keep
-    their values and a factor of 1."""
+    "scatter_pct_after", "repetitions", "level_pct"}}).
+
+    Two steps. Inside each experiment, each repetition's drift from its
+    neighbours in run order (choose_window). Then between experiments, the
+    level: a configuration several experiments measured is pooled, and an
+    experiment measured hours later on a slower machine would move the pooled
+    value of only the configurations it shares; every time of an experiment
+    is divided by its level (`levels`, from the shared configurations), which
+    changes no ratio inside it. Rows the correction cannot use keep their
+    values and a factor of 1."""
     out = rows.copy() if rows.index.is_unique else rows.reset_index(drop=True)
     out[FACTOR] = 1.0
     summary = {}
     if out.empty or "experiment" not in out:
         return out, summary
+    used = []
+    for exp, part in out.groupby("experiment", sort=True):
+        k, scatter = choose_window(part, windows)
+        use = usable(part)
+        used.append(use.index)
+        summary[exp] = {"window": k, "scatter_pct_before": scatter.get(None, math.nan),
+                        "scatter_pct_after": scatter.get(k, math.nan), "repetitions": int(len(use)),
+                        "level_pct": 0.0}
+        if k is not None:
+            out.loc[use.index, FACTOR] = np.exp(_estimates(use, _residuals(use), k))
+    inside = out.loc[np.concatenate(used)].copy()
+    for col in (RESIDUAL_OF, PER_STEP):  # the times as corrected so far
+        if col in inside:
+            inside[col] = inside[col] / inside[FACTOR]
+    for exp, log_f in levels(inside).items():
+        summary[exp]["level_pct"] = 100.0 * math.expm1(log_f)
+        out.loc[inside.index[inside["experiment"] == exp], FACTOR] *= math.exp(log_f)
+    factor = out[FACTOR].to_numpy()
     times, rates = time_columns(out), rate_columns(out)
-    parts = {exp: usable(part) for exp, part in out.groupby("experiment", sort=True)}
-    measured = [p for p in parts.values() if len(p)]
-    resid = _residuals(pd.concat(measured)) if measured else None
-    for exp, use in parts.items():
-        k, scatter = choose_window(use, windows, resid)
-        entry = {"window": k, "scatter_pct_before": scatter.get(None, math.nan),
-                 "scatter_pct_after": scatter.get(k, math.nan), "repetitions": int(len(use))}
-        summary[exp] = entry
-        if k is None:
-            continue
-        factor = np.exp(_estimates(use, resid.loc[use.index], k))
-        out.loc[use.index, FACTOR] = factor
-        out.loc[use.index, times] = use[times].to_numpy(float) / factor[:, None]
-        if rates:
-            out.loc[use.index, rates] = use[rates].to_numpy(float) * factor[:, None]
+    out[times] = out[times].to_numpy(float) / factor[:, None]
+    if rates:
+        out[rates] = out[rates].to_numpy(float) * factor[:, None]
     return out, summary

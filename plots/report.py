@@ -329,16 +329,18 @@ def drift_section(summary):
     """Lines on the drift correction of each experiment (harness/drift.py)."""
     lines = []
     for exp, d in summary.items():
+        level = (f"; level {d['level_pct']:+.1f} % against the experiments it shares configurations with"
+                 if d.get("level_pct") else "")
         if not d["repetitions"]:
             lines.append(f"- `{exp}`: no run order recorded; times as measured")
         elif d["window"] is None:
-            lines.append(f"- `{exp}`: left as measured (no window reduced the scatter of "
-                         f"{d['scatter_pct_before']:.1f} %)" if math.isfinite(d["scatter_pct_before"])
-                         else f"- `{exp}`: left as measured (too few repetitions per round)")
+            lines.append((f"- `{exp}`: no window reduced the scatter of {d['scatter_pct_before']:.1f} %"
+                          if math.isfinite(d["scatter_pct_before"])
+                          else f"- `{exp}`: too few repetitions per round for a window") + level)
         else:
             lines.append(f"- `{exp}`: {d['window']} neighbour(s) on each side; scatter of the "
                          f"residuals {d['scatter_pct_before']:.1f} % → {d['scatter_pct_after']:.1f} % "
-                         f"({d['repetitions']} repetitions)")
+                         f"({d['repetitions']} repetitions)" + level)
     return lines
 
 
@@ -451,7 +453,9 @@ def build(run_dir, exp_dir, resamples=None, drift=True):
         out += ["## Drift correction", "",
                 "Scatter: standard deviation of the repetitions' log-time residuals (about their "
                 "configuration's mean) before and after dividing out the drift estimated from their "
-                "neighbours in run order; the window is the one that leaves the least.", ""]
+                "neighbours in run order; the window is the one that leaves the least. Level: the factor "
+                "each experiment's times were then divided by so that the configurations it shares with "
+                "other experiments agree (the median over them; ratios inside it do not change).", ""]
         out += drift_section(drift_summary) + [""]
     out += ["## Figures", ""]
     for exp, sentence in figures:

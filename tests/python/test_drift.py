@@ -104,11 +104,16 @@ class ReportSectionTest(unittest.TestCase):
         _, summary = D.corrected(pd.concat([rows, flat, old], ignore_index=True))
         lines = report.drift_section(summary)
         self.assertEqual(len(lines), 3)
-        self.assertTrue(lines[0].startswith("- `flat`: left as measured (no window reduced the scatter of "))
+        self.assertTrue(lines[0].startswith("- `flat`: no window reduced the scatter of "), lines[0])
         self.assertEqual(lines[1], "- `old`: no run order recorded; times as measured")
         k = summary["x"]["window"]
         self.assertRegex(lines[2], rf"^- `x`: {k} neighbour\(s\) on each side; scatter of the residuals "
                                    r"\d+\.\d % → \d+\.\d % \(400 repetitions\)$")
+        # two experiments sharing configurations: each line gives its level
+        summary = {"a": {**summary["x"], "level_pct": 3.04}, "b": {**summary["flat"], "level_pct": -2.95}}
+        lines = report.drift_section(summary)
+        self.assertTrue(lines[0].endswith("; level +3.0 % against the experiments it shares configurations with"))
+        self.assertTrue(lines[1].endswith("; level -3.0 % against the experiments it shares configurations with"))
 
 
 if __name__ == "__main__":
