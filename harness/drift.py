@@ -74,7 +74,10 @@ def neighbour_mean(values, k):
 
 
 def _config_keys(rows):
-    return [c for c in param_columns(rows) if c not in BOOKKEEPING and c != "experiment"]
+    """Parameters and window length: the same configuration timed over windows
+    of different lengths is not the same measurement (harness/stats.py WINDOW)."""
+    keys = [c for c in param_columns(rows) if c not in BOOKKEEPING and c != "experiment"]
+    return keys + (["window_steps"] if "window_steps" in rows and "window_steps" not in keys else [])
 
 
 def _residuals(rows):

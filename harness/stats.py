@@ -40,6 +40,10 @@ LEVEL = 0.95
 RESAMPLES = 1000
 ROUND_COLS = ("round", "sphnl_round")  # the round an entry came from (absent in old files)
 BOOKKEEPING = {"repetition_index", "round", "sphnl_round", "run_sequence"}
+# The steps a repetition times is part of what it measures: the first step
+# of a window costs more (the snapshot's caches are cold), so a configuration
+# timed over 10 steps and over 84 is not one configuration to pool.
+WINDOW = "window_steps"
 ROUND_ID = "_round_id"     # experiment:round, unique across a pooled data set
 STRATUM = "_stratum"       # experiment the round belongs to: rounds are drawn within it
 
@@ -109,8 +113,9 @@ class RoundBootstrap:
             rows = with_round_ids(rows)
         ok = rows[~rows["error_occurred"].astype(bool)]
         keys = [k for k in param_columns(ok) if k not in (ROUND_ID, STRATUM)]
-        if "flow_time" in ok and "flow_time" not in keys:
-            keys.append("flow_time")
+        for extra in ("flow_time", WINDOW):
+            if extra in ok and extra not in keys:
+                keys.append(extra)
         skip = set(keys) | BOOKKEEPING | {ROUND_ID, STRATUM, "run_name",
                             "error_message", "error_occurred"}
         self.numeric = [c for c in ok.columns if c not in skip and ok[c].dtype.kind in "iuf"]

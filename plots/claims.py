@@ -1054,8 +1054,10 @@ def _fmt_key(state, key):
 
 
 def _config_keys(df):
+    """What makes two rows the same configuration, to pool across experiments:
+    the parameters, the flow state and the window length (S.WINDOW)."""
     return [k for k in param_columns(df) if k not in ("experiment", S.ROUND_ID, S.STRATUM)] + \
-        (["flow_time"] if "flow_time" in df and "flow_time" not in param_columns(df) else [])
+        [k for k in ("flow_time", S.WINDOW) if k in df and k not in param_columns(df)]
 
 
 class Evaluator:

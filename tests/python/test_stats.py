@@ -218,6 +218,24 @@ class TestTiesAndPooling(unittest.TestCase):
         self.assertTrue(1.0 <= r["ci_low"] <= r["ci_high"] <= 2.0, (r["ci_low"], r["ci_high"]))
 
 
+    def test_windows_of_other_lengths_are_not_pooled(self):
+        """The same configuration timed over 84 steps in one experiment and 10
+        in another: two measurements (the first step costs more), not one."""
+        claim = {"id": "vlx_gain_ns7_150k", "at_n": 8000, "min_n": 1000, "unit": "%",
+                 "tolerance": {"reproduced": [3.7, 7.7], "partly": [0, 12]}, "band_reason": "test"}
+        one = rows({("cll", 8000): [[1.0, 1.0]] * 3, ("vlx", 8000): [[0.9, 0.9]] * 3}, "fig14")
+        two = rows({("cll", 8000): [[1.2, 1.2]] * 3, ("vlx", 8000): [[1.2, 1.2]] * 3}, "fig16")
+        exp = {"id": "fig14", "claims": [claim]}
+        both = pd.concat([one.assign(window_steps=84), two.assign(window_steps=10)])
+        r = C.Evaluator(both, resamples=100).experiment(exp, [claim])[0]
+        self.assertEqual(r["experiments"], ["fig14"])
+        self.assertAlmostEqual(r["value"], 10.0)
+        same = pd.concat([one.assign(window_steps=21), two.assign(window_steps=21)])
+        r = C.Evaluator(same, resamples=100).experiment(exp, [claim])[0]
+        self.assertEqual(r["experiments"], ["fig14", "fig16"])
+        self.assertAlmostEqual(r["value"], 100 * (1 - (0.9 + 1.2) / (1.0 + 1.2)))
+
+
 class TestFlowStates(unittest.TestCase):
     def test_improvement_is_measured_per_state_and_pooled_as_their_mean(self):
         claim = {"id": "vlx_gain_ns7_150k", "at_n": 8000, "min_n": 1000, "unit": "%",
