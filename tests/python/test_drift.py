@@ -1,7 +1,8 @@
 """harness/drift.py on synthetic repetitions whose drift is known: the
 leave-one-out neighbour mean, the window choice (a slow drift is corrected,
 white noise is left alone), no bias in a ratio, which columns are scaled,
-and that the intervals of the corrected times still cover the truth."""
+the level of an experiment measured on a slower machine, the report's
+lines, and that the intervals of the corrected times still cover the truth."""
 import unittest
 
 import numpy as np
