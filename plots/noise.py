@@ -105,14 +105,15 @@ def _select(df, pair):
     return key, is_base
 
 
-def _two_level(rounds, stat, rng, resamples):
-    """Percentile interval of stat over a two-level bootstrap: rounds with
-    replacement, then the items of each drawn round with replacement."""
-    reps = []
-    for _ in range(resamples):
-        drawn = [rounds[i] for i in rng.integers(0, len(rounds), len(rounds))]
-        reps.append(stat([r[rng.integers(0, len(r), len(r))] for r in drawn]))
-    return S.percentile_interval(reps)
+def _median_ci(rounds, resamples, seed):
+    """(median, low, high) of the pooled values given one array per round,
+    resampled as the report does (harness.stats.RoundBootstrap: rounds with
+    replacement, then the values inside each drawn round)."""
+    rows = pd.DataFrame([{"experiment": "x", "family": "f", "round": k, "repetition_index": i,
+                          "value": float(v), "error_occurred": False}
+                         for k, values in enumerate(rounds) for i, v in enumerate(values)])
+    boot = S.RoundBootstrap(rows, resamples=resamples, seed=seed)
+    return boot.interval(lambda med: float(med["value"].iloc[0]))
 
 
 def pairing(df, pair, any_keys=(), resamples=S.RESAMPLES, seed=0):
@@ -126,7 +127,6 @@ def pairing(df, pair, any_keys=(), resamples=S.RESAMPLES, seed=0):
     keys = config_columns(df)
     match = [k for k in keys if k != key and k not in any_keys]
     base, others = df[is_base], df[~is_base]
-    rng = np.random.default_rng(seed)
     rows = []
     for cfg, x in others.groupby(keys):
         cfg = dict(zip(keys, cfg))
@@ -145,8 +145,7 @@ def pairing(df, pair, any_keys=(), resamples=S.RESAMPLES, seed=0):
             seq_b, val_b = br["run_sequence"].to_numpy(), br["value"].to_numpy()
             nearest.append(np.array([v / val_b[np.argmin(np.abs(seq_b - s))]
                                      for s, v in zip(xr["run_sequence"], xr["value"])]))
-        n_value = float(np.median(np.concatenate(nearest)))
-        n_lo, n_hi = _two_level(nearest, lambda rs: np.median(np.concatenate(rs)), rng, resamples)
+        n_value, n_lo, n_hi = _median_ci(nearest, resamples, seed)
         n_reps = int(sum(len(a) for a in a_rounds))
         rows.append({**cfg, "repetitions": n_reps,
                      "by_round": value, "by_round_low": lo, "by_round_high": hi,
