@@ -429,8 +429,9 @@ def build(run_dir, exp_dir, resamples=None, drift=True):
              "are other configurations); see \"Drift correction\" below and `harness/drift.py`. The "
              "raw times stay in the results files."
              if drift else "- Times as measured: drift correction was turned off (`--no-drift-correction`)."),
-            "- A configuration measured in several experiments is pooled: every claim that uses it reads all "
-            "its repetitions, and the note lists the value each experiment gives alone.",
+            "- A configuration measured in several experiments with the same window length is pooled: every "
+            "claim that uses it reads the mean of the experiments' medians, and the note lists the value "
+            "each experiment gives alone.",
             "- Where an experiment measures several flow states (`flow_time`), the claim is the mean over "
             "the states; the note gives each state's value.",
             "- *Improvement* is the paper's (t_ref − t) / t_ref in percent: positive means faster "
