@@ -34,9 +34,8 @@ The raw values stay in the results files; this is a derived view.
 import math
 
 import numpy as np
-import pandas as pd
 
-from harness.results import BOOKKEEPING, param_columns
+from harness.stats import config_keys
 
 WINDOWS = (1, 2, 4, 8, 16)       # neighbours on each side of a repetition
 # The time whose residuals measure the machine: per step where the family
@@ -73,17 +72,10 @@ def neighbour_mean(values, k):
     return total / (hi - lo - 1)
 
 
-def _config_keys(rows):
-    """Parameters and window length: the same configuration timed over windows
-    of different lengths is not the same measurement (harness/stats.py WINDOW)."""
-    keys = [c for c in param_columns(rows) if c not in BOOKKEEPING and c != "experiment"]
-    return keys + (["window_steps"] if "window_steps" in rows and "window_steps" not in keys else [])
-
-
 def _residuals(rows):
     """log time minus the mean over its configuration's repetitions (in `rows`:
     one experiment's)."""
-    keys = _config_keys(rows)
+    keys = config_keys(rows)
     log_t = np.log(_time(rows))
     return log_t - log_t.groupby([rows[k] for k in keys], dropna=False).transform("mean")
 
@@ -115,19 +107,19 @@ def usable(rows):
     return rows[ok & np.isfinite(t) & (t > 0)]
 
 
-def choose_window(rows, windows=WINDOWS):
-    """(k or None, {k: scatter %}) for one experiment's rows: the scatter is
-    the standard deviation, in percent, of the residuals left after dividing
-    by the window's estimate (None: no correction)."""
-    rows = usable(rows)
-    if len(rows) < 4 or rows["round"].value_counts().max() < 3:
-        return None, {}
-    resid = _residuals(rows)
-    scatter = {None: 100.0 * float(np.std(resid))}
-    for k in windows:
-        scatter[k] = 100.0 * float(np.std(resid.to_numpy() - _estimates(rows, resid, k)))
+def choose_window(use, windows=WINDOWS):
+    """(k or None, {k: scatter %}, log drift estimate of every row) for one
+    experiment's usable rows: the scatter is the standard deviation, in
+    percent, of the residuals left after dividing by the window's estimate
+    (None: no correction, an estimate of 0)."""
+    if len(use) < 4 or use["round"].value_counts().max() < 3:
+        return None, {}, np.zeros(len(use))
+    resid = _residuals(use)
+    estimates = {None: np.zeros(len(use))}
+    estimates.update((k, _estimates(use, resid, k)) for k in windows)
+    scatter = {k: 100.0 * float(np.std(resid.to_numpy() - e)) for k, e in estimates.items()}
     best = min(scatter, key=lambda k: (scatter[k], k is not None))
-    return best, scatter
+    return best, scatter, estimates[best]
 
 
 def levels(rows):
@@ -135,14 +127,13 @@ def levels(rows):
     level of the configurations it shares with others: the median, over
     those configurations, of the log of its median over the mean of every
     experiment's log median. 0 for an experiment that shares none."""
-    use = rows[~rows["error_occurred"].astype(bool)]
-    t = _time(use)
-    use = use[np.isfinite(t) & (t > 0)]
+    t = _time(rows)
+    keep = ~rows["error_occurred"].astype(bool) & np.isfinite(t) & (t > 0)
+    use = rows[keep]
     if use.empty:
         return {}
-    keys = _config_keys(use)
-    log_med = np.log(_time(use)).groupby([use[k] for k in keys] + [use["experiment"]],
-                                         dropna=False).median()
+    log_med = np.log(t[keep]).groupby([use[k] for k in config_keys(use)] + [use["experiment"]],
+                                      dropna=False).median()
     table = log_med.unstack("experiment")
     shared = table[table.notna().sum(axis=1) > 1]
     if shared.empty:
@@ -171,14 +162,13 @@ def corrected(rows, windows=WINDOWS):
         return out, summary
     used = []
     for exp, part in out.groupby("experiment", sort=True):
-        k, scatter = choose_window(part, windows)
         use = usable(part)
+        k, scatter, estimate = choose_window(use, windows)
         used.append(use.index)
         summary[exp] = {"window": k, "scatter_pct_before": scatter.get(None, math.nan),
                         "scatter_pct_after": scatter.get(k, math.nan), "repetitions": int(len(use)),
                         "level_pct": 0.0}
-        if k is not None:
-            out.loc[use.index, FACTOR] = np.exp(_estimates(use, _residuals(use), k))
+        out.loc[use.index, FACTOR] = np.exp(estimate)
     inside = out.loc[np.concatenate(used)].copy()
     for col in (RESIDUAL_OF, PER_STEP):  # the times as corrected so far
         if col in inside:

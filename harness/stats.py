@@ -34,7 +34,7 @@ import warnings
 import numpy as np
 import pandas as pd
 
-from harness.results import derive_columns
+from harness.results import derive_columns, param_columns
 
 LEVEL = 0.95
 RESAMPLES = 1000
@@ -78,6 +78,13 @@ def median_ci(samples, level=0.95, seed=0, resamples=2000):
     return med, lo, hi
 
 
+def config_keys(df):
+    """The columns that make rows of several experiments one configuration, to
+    pool: the parameters, the flow state and the window length (WINDOW)."""
+    keys = [k for k in param_columns(df) if k not in ("experiment", ROUND_ID, STRATUM) and k not in BOOKKEEPING]
+    return keys + [k for k in ("flow_time", WINDOW) if k in df and k not in keys]
+
+
 def with_round_ids(rows):
     """`rows` (harness.results.load_run) with the round identity columns that
     RoundBootstrap resamples. The unit is the entry's round (`round`, from the
@@ -110,15 +117,11 @@ class RoundBootstrap:
     same table with replicate b's medians."""
 
     def __init__(self, rows, resamples=RESAMPLES, seed=0, level=LEVEL):
-        from harness.results import param_columns
         self.level, self.resamples = level, resamples
         if ROUND_ID not in rows:
             rows = with_round_ids(rows)
         ok = rows[~rows["error_occurred"].astype(bool)]
-        keys = [k for k in param_columns(ok) if k not in (ROUND_ID, STRATUM)]
-        for extra in ("flow_time", WINDOW):
-            if extra in ok and extra not in keys:
-                keys.append(extra)
+        keys = ["experiment"] + config_keys(ok)
         skip = set(keys) | BOOKKEEPING | {ROUND_ID, STRATUM, "run_name",
                             "error_message", "error_occurred"}
         self.numeric = [c for c in ok.columns if c not in skip and ok[c].dtype.kind in "iuf"]

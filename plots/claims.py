@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from harness import stats as S
-from harness.results import ResultsError, param_columns, pick
+from harness.results import ResultsError, pick
 
 MIN_N = 5000  # a claim about performance needs at least this N in the run
 CLAIMS = {}
@@ -1053,13 +1053,6 @@ def _fmt_key(state, key):
     return k if state is None else f"{k} (t = {state:g} s)"
 
 
-def _config_keys(df):
-    """What makes two rows the same configuration, to pool across experiments:
-    the parameters, the flow state and the window length (S.WINDOW)."""
-    return [k for k in param_columns(df) if k not in ("experiment", S.ROUND_ID, S.STRATUM)] + \
-        [k for k in ("flow_time", S.WINDOW) if k in df and k not in param_columns(df)]
-
-
 class Evaluator:
     """Evaluates the claims of every experiment on one run's rows, pooling
     each configuration over all the experiments that measured it."""
@@ -1070,7 +1063,7 @@ class Evaluator:
         if len(rows):
             ok = self.rows[~self.rows["error_occurred"].astype(bool)]
             self.rows = ok
-            self.keys = _config_keys(ok)
+            self.keys = S.config_keys(ok)
             self.key_str = _norm_keys(ok, self.keys).set_axis(ok.index)
 
     def sources(self, src):
