@@ -40,12 +40,12 @@ LEVEL = 0.95
 RESAMPLES = 1000
 ROUND_COLS = ("round", "sphnl_round")  # the round an entry came from (absent in old files)
 BOOKKEEPING = {"repetition_index", "round", "sphnl_round", "run_sequence"}
-# The steps a repetition times is part of what it measures: in
-# results/full-00f0b6f the same configurations timed over 84 steps (fig14)
-# took 13-23 % less per step than over 10 or 21 (medians over 6-9 shared
-# configurations), more than experiments of equal windows differ (-2 to
-# +14 %). So a configuration timed over 10 steps and over 84 is not one
-# configuration to pool.
+# The steps a repetition times is part of what it measures, so only windows
+# of one length are pooled. In results/full-00f0b6f the same configurations
+# took 13-23 % less per step over 84 steps (fig14) than over 10 or 21; that
+# does not separate the window from drift between experiments (those of
+# equal windows differ by -2 to +14 %), but pooling like with like needs no
+# such separation.
 WINDOW = "window_steps"
 ROUND_ID = "_round_id"     # experiment:round, unique across a pooled data set
 STRATUM = "_stratum"       # experiment the round belongs to: rounds are drawn within it
