@@ -5,9 +5,10 @@ optional at_n / min_n / tie_within, tolerance {"reproduced": [lo, hi],
 "partly": [lo, hi]}, band_reason, source) has one function here, registered
 under its id. The function gets a per-configuration median table
 (harness.results.medians) and returns (value, note) or (value, note,
-{related metric: value}), or raises NotMeasured. A value is a number, or
+{related metric: value}), or raises NotMeasured. A value is a number,
 `Margins` for claims that count the points where one configuration beats
-another.
+another, or `Extremum` for claims about the largest of several values (the
+best n_s), whose interval comes from a simultaneous band.
 
 `evaluate` measures the claim with an interval (harness.stats.RoundBootstrap:
 the function runs on every bootstrap replicate of the medians, resampled
@@ -55,6 +56,25 @@ class Margins:
     def __init__(self, margins, what):
         self.margins = pd.Series(margins, dtype=float)
         self.what = what
+
+
+class Extremum:
+    """Per-point values (indexed by the point, e.g. n_s) of a claim about the
+    largest of them: its value is the largest (`of="max"`) or where it lies
+    (`of="argmax"`); the other is reported as the related metric `other`.
+
+    The interval is not the bootstrap of the maximum: each replicate's
+    maximum picks whichever point drew high, so over points close together
+    (a flat optimum) the replicates sit above the estimate, which itself sits
+    above the true largest, and the 95 % interval can miss it nearly always.
+    Instead the values get a simultaneous band (harness.stats.simultaneous_band):
+    if every true value lies in its interval, the true largest lies between the
+    largest low end and the largest high end, and at one of the points whose
+    high end reaches that largest low end (the contenders)."""
+
+    def __init__(self, values, what, of="max", other=None):
+        self.values = pd.Series(values, dtype=float)
+        self.what, self.of, self.other = what, of, other
 
 
 def claim(claim_id):
@@ -343,13 +363,14 @@ def vl_beats_cll_mid_ns(med, c):
 def best_ns_near_7(med, c):
     g, note = _ns_gains(med, c, "vlx")
     _need_points(g, 3, "values of n_s")
-    return float(g.idxmax()), f"{note}; n_s of VL_X's largest improvement", {"best_gain_pct": float(g.max())}
+    return Extremum(g, "improvements over n_s", of="argmax", other="best_gain_pct"), \
+        f"{note}; n_s of VL_X's largest improvement"
 
 
 def _best_gain(med, c, lst):
     g, note = _ns_gains(med, c, lst)
     _need_points(g, 3, "values of n_s")
-    return float(g.max()), f"{note}; the largest over n_s", {"at_ns": float(g.idxmax())}
+    return Extremum(g, "improvements over n_s", of="max", other="at_ns"), f"{note}; the largest over n_s"
 
 
 CLAIMS["vlx_best_gain_4pct"] = functools.partial(_best_gain, lst="vlx")
@@ -936,6 +957,8 @@ def _layout(fn, c, med):
         outs.append((value, note, extras))
         if isinstance(value, Margins):
             layout += [(s, "margin", i) for i in value.margins.index]
+        elif isinstance(value, Extremum):
+            layout += [(s, "point", i) for i in value.values.index]
         else:
             layout.append((s, "value", None))
         layout += [(s, "extra", k) for k in sorted(extras)]
@@ -951,6 +974,8 @@ def _flat(fn, c, med, states, layout):
                 continue
             if kind == "margin":
                 vec.append(value.margins.get(key, np.nan))
+            elif kind == "point":
+                vec.append(value.values.get(key, np.nan))
             elif kind == "value":
                 vec.append(float(value))
             else:
@@ -1029,6 +1054,9 @@ def measure(fn, c, boot):
             res["ties"] = (f"more rounds: {len(undecided)} point(s) whose margin's interval straddles "
                            f"{'0' if tie == 0 else 'the tie tolerance'} (the claim's interval is the range "
                            "of fractions they allow)")
+    elif isinstance(outs[0][0], Extremum):
+        res["note"] = outs[0][1]
+        value, lo, hi = _extremum(outs[0][0], point, reps, states, layout, level, res)
     else:
         vi = cols[("value", None)]
         pooled = np.mean(reps[:, vi], axis=1)
@@ -1045,6 +1073,41 @@ def measure(fn, c, boot):
             res["related"][key] = {"value": float(np.mean(point[ii])), "ci_low": a, "ci_high": z}
     res.update(value=float(value), ci_low=float(lo), ci_high=float(hi))
     return res
+
+
+def _extremum(ext, point, reps, states, layout, level, res):
+    """Value and interval of an Extremum claim (see Extremum): per flow state,
+    then the mean over the states; fills res's per_flow_time, related, note."""
+    idx = [i for i, (_, k, _) in enumerate(layout) if k == "point"]
+    if not idx:
+        raise NotMeasured(f"no {ext.what} measured")
+    low, high = S.simultaneous_band(reps[:, idx], level)
+    band = dict(zip(idx, zip(low, high)))
+    per = {}
+    for s in states:
+        ii = [i for i in idx if layout[i][0] == s]
+        best = max(ii, key=lambda i: point[i])
+        floor = max(band[i][0] for i in ii)
+        contenders = [layout[i][2] for i in ii if band[i][1] >= floor]
+        per[s] = {"max": (point[best], floor, max(band[i][1] for i in ii)),
+                  "argmax": (layout[best][2], min(contenders), max(contenders)),
+                  "contenders": contenders}
+    other = "argmax" if ext.of == "max" else "max"
+    for s in states:
+        if s is not None:
+            v, a, z = per[s][ext.of]
+            res["per_flow_time"].append({"flow_time": s, "value": float(v), "ci_low": float(a),
+                                         "ci_high": float(z)})
+    if ext.other:
+        v, a, z = np.mean([per[s][other] for s in states], axis=0)
+        res["related"][ext.other] = {"value": float(v), "ci_low": float(a), "ci_high": float(z)}
+    may = "; ".join((f"t = {s:g} s: " if s is not None else "") + ", ".join(f"{k:g}" for k in per[s]["contenders"])
+                    for s in states)
+    res["note"] = (f"{res['note']}; interval of the largest of {len(idx)} {ext.what} from a "
+                   f"simultaneous {100 * level:g} % band (the bootstrap of a maximum is biased up); "
+                   f"may be the largest: {may}").lstrip("; ")
+    v, a, z = np.mean([per[s][ext.of] for s in states], axis=0)
+    return float(v), float(a), float(z)
 
 
 def _fmt_key(state, key):
