@@ -126,7 +126,7 @@ def levels(rows):
     """{experiment: log factor} that brings each experiment to the common
     level of the configurations it shares with others: the median, over
     those configurations, of the log of its median over the mean of every
-    experiment's log median. 0 for an experiment that shares none."""
+    experiment's log median. An experiment that shares none is left out."""
     t = _time(rows)
     keep = ~rows["error_occurred"].astype(bool) & np.isfinite(t) & (t > 0)
     use = rows[keep]
@@ -136,16 +136,15 @@ def levels(rows):
                                       dropna=False).median()
     table = log_med.unstack("experiment")
     shared = table[table.notna().sum(axis=1) > 1]
-    if shared.empty:
-        return {e: 0.0 for e in table.columns}
     offset = shared.sub(shared.mean(axis=1), axis=0)
-    return {e: (float(offset[e].median()) if offset[e].notna().any() else 0.0) for e in table.columns}
+    return {e: float(offset[e].median()) for e in offset.columns if offset[e].notna().any()}
 
 
 def corrected(rows, windows=WINDOWS):
     """(rows with every time divided by its drift factor and every rate
     multiplied by it, {experiment: {"window", "scatter_pct_before",
-    "scatter_pct_after", "repetitions", "level_pct"}}).
+    "scatter_pct_after", "repetitions", "level_pct"}}); level_pct is None for
+    an experiment that shares no configuration with another.
 
     Two steps. Inside each experiment, each repetition's drift from its
     neighbours in run order (choose_window). Then between experiments, the
@@ -167,7 +166,7 @@ def corrected(rows, windows=WINDOWS):
         used.append(use.index)
         summary[exp] = {"window": k, "scatter_pct_before": scatter.get(None, math.nan),
                         "scatter_pct_after": scatter.get(k, math.nan), "repetitions": int(len(use)),
-                        "level_pct": 0.0}
+                        "level_pct": None}
         out.loc[use.index, FACTOR] = np.exp(estimate)
     inside = out.loc[np.concatenate(used)].copy()
     for col in (RESIDUAL_OF, PER_STEP):  # the times as corrected so far

@@ -329,8 +329,10 @@ def drift_section(summary):
     """Lines on the drift correction of each experiment (harness/drift.py)."""
     lines = []
     for exp, d in summary.items():
-        level = (f"; level {d['level_pct']:+.1f} % against the experiments it shares configurations with"
-                 if d.get("level_pct") else "")
+        pct = d.get("level_pct")
+        level = ("" if pct is None else  # shares no configuration with another experiment
+                 f"; level {'±0.0' if abs(pct) < 0.05 else f'{pct:+.1f}'} % against the experiments "
+                 "it shares configurations with")
         if not d["repetitions"]:
             lines.append(f"- `{exp}`: no run order recorded; times as measured")
         elif d["window"] is None:

@@ -115,6 +115,9 @@ class ReportSectionTest(unittest.TestCase):
         lines = report.drift_section(summary)
         self.assertTrue(lines[0].endswith("; level +3.0 % against the experiments it shares configurations with"))
         self.assertTrue(lines[1].endswith("; level -3.0 % against the experiments it shares configurations with"))
+        # a level too small to print is shown as none, not as "+0.0 %" or "-0.0 %"
+        lines = report.drift_section({"a": {**summary["a"], "level_pct": -0.01}})
+        self.assertTrue(lines[0].endswith("; level ±0.0 % against the experiments it shares configurations with"))
 
 
 if __name__ == "__main__":
