@@ -23,7 +23,8 @@ namespace {
 const std::vector<std::string> kAxes = {"particles", "gridder", "cell_order", "reorder", "list", "list_steps",
                                         "kgc", "threads", "lattice", "h_coefficient", "flow_time",
                                         "pair_loop", "simd", "skip_boundary_pairs", "gridder_a_variant",
-                                        "initial_order", "extra_loops", "thread_updates", "thread_split", "precision", "cache_model"};
+                                        "initial_order", "extra_loops", "thread_updates", "thread_split", "precision", "inner_order",
+                                        "cache_model"};
 
 /// This core's FMA peak (GFlop/s) in the pair kernel's precision (float for
 /// precision=mixed), measured once per process before its first window

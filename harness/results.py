@@ -22,7 +22,7 @@ FAMILY_KEYS = {
              "threads", "lattice", "h_coefficient", "flow_time",
              # optional ablation axes (README.md, "Ablations")
              "pair_loop", "simd", "skip_boundary_pairs", "gridder_a_variant", "initial_order",
-             "extra_loops", "thread_updates", "thread_split", "precision"],
+             "extra_loops", "thread_updates", "thread_split", "precision", "inner_order"],
     "cellindex": ["cell_order", "particles"],
     "search": ["particles", "gridder", "cell_order", "reorder", "threads",
                "impl", "cloud", "memory_order", "call", "pages"],
@@ -30,7 +30,7 @@ FAMILY_KEYS = {
     "counters": ["particles", "gridder", "cell_order", "reorder", "list", "list_steps", "kgc",
                  "threads", "lattice", "h_coefficient", "flow_time",
                  "pair_loop", "simd", "skip_boundary_pairs", "gridder_a_variant", "initial_order",
-                 "extra_loops", "thread_updates", "thread_split", "precision", "cache_model"],
+                 "extra_loops", "thread_updates", "thread_split", "precision", "inner_order", "cache_model"],
     # `sphnl run` under mpirun (the mpi kind, experiments/mpi_runs.py): ranks x threads
     "mpi": ["particles", "list", "list_steps", "ranks", "threads",
             # optional: what the ranks' cell ranges balance (ranks > 1 only)
@@ -52,7 +52,8 @@ OLD_COUNTERS = {"n": "n_particles"}            # old counter -> now (particles s
 _STEP_DEFAULTS = {"lattice": "bcc", "h_coefficient": 0.866025, "flow_time": DEFAULT_FLOW_TIME,
                   "pair_loop": "gather", "simd": "on", "skip_boundary_pairs": 0,
                   "gridder_a_variant": "occupied", "initial_order": "generated", "extra_loops": 0,
-                  "thread_updates": "private", "thread_split": "fluid", "precision": "double"}
+                  "thread_updates": "private", "thread_split": "fluid", "precision": "double",
+                  "inner_order": "index"}
 AXIS_DEFAULTS = {
     "step": _STEP_DEFAULTS,
     "counters": _STEP_DEFAULTS,  # cache_model has none: a counters sweep names it

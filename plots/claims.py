@@ -667,6 +667,38 @@ def _gather_over_masked(med, at, main, others):
     return float(gather["t"]) / float(masked["t"]), related
 
 
+# ------------------------------- beyond the paper: the order of each cell's particles
+@claim("index_over_morton_masked")
+def index_over_morton_masked(med, c):
+    """Time per step with inner_order=index over inner_order=morton, CLL,
+    masked pair loop, double, no KGC; related, the force phase's ratio, the
+    same ratio in mixed precision and with the gather loop, and the masked
+    loop's kernel lanes per pair in both orders."""
+    if "inner_order" not in med or "pair_loop" not in med:
+        raise NotMeasured("no inner_order or pair_loop axis in the results")
+    n, note = _at(med, c)
+    at = {"particles": n, "list": "cll", "threads": 1, "kgc": 0}
+    index = _row(med, inner_order="index", pair_loop="masked", precision="double", **at)
+    morton = _row(med, inner_order="morton", pair_loop="masked", precision="double", **at)
+    related = {"force_phase": float(index["s_force"]) / float(morton["s_force"])}
+    for name, where in (("mixed", {"pair_loop": "masked", "precision": "mixed"}),
+                        ("gather", {"pair_loop": "gather", "precision": "double"}),
+                        ("gather mixed", {"pair_loop": "gather", "precision": "mixed"})):
+        try:
+            related[name] = _one(med, inner_order="index", **where, **at) / _one(med, inner_order="morton", **where, **at)
+        except NotMeasured:
+            pass
+    for name, row in (("index", index), ("morton", morton)):
+        if "kernel_lanes_per_pair" in row:
+            related[f"kernel_lanes_per_pair_{name}"] = float(row["kernel_lanes_per_pair"])
+    return float(index["t"]) / float(morton["t"]), note.replace("(paper: ", "(claim read at ") + ", CLL, masked, double", related
+
+
+for _precision in ("double", "mixed"):
+    CLAIMS[f"step_us_{_precision}_masked_morton"] = functools.partial(
+        _us_per_particle_step, precision=_precision, pair_loop="masked", inner_order="morton")
+
+
 # ------------------------------------ beyond the paper: the pair loop of the Verlet lists
 @claim("vl_masked_over_gather")
 def vl_masked_over_gather(med, c):

@@ -19,6 +19,7 @@ constexpr std::array kLatticeNames{"bcc", "cubic"};
 constexpr std::array kPairLoopNames{"gather", "direct", "masked"};
 constexpr std::array kSlidingNames{"occupied", "shift_all"};
 constexpr std::array kInitialOrderNames{"generated", "shuffled"};
+constexpr std::array kInnerOrderNames{"index", "morton"};
 constexpr std::array kOnOffNames{"on", "off"};
 constexpr std::array kThreadUpdateNames{"private", "phased"};
 constexpr std::array kThreadSplitNames{"fluid", "interactions", "dynamic"};
@@ -124,6 +125,8 @@ const std::vector<Key>& key_table() {
        [](const RunConfig& c) { return json(to_string(c.cell_order)); }},
       {"reorder", [](RunConfig& c, const json& v) { c.reorder = get_bool("reorder", v); },
        [](const RunConfig& c) { return json(c.reorder); }},
+      {"inner_order", [](RunConfig& c, const json& v) { c.inner_order = get_enum<InnerOrder>("inner_order", v, kInnerOrderNames); },
+       [](const RunConfig& c) { return json(to_string(c.inner_order)); }},
       {"reorder_every", [](RunConfig& c, const json& v) { c.reorder_every = static_cast<int>(get_integer("reorder_every", v, 1, 1'000'000)); },
        [](const RunConfig& c) { return json(c.reorder_every); }},
       {"max_parts_in_cell", [](RunConfig& c, const json& v) { c.max_parts_in_cell = static_cast<int>(get_integer("max_parts_in_cell", v, 0, 1'000'000)); },

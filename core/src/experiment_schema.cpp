@@ -74,6 +74,8 @@ const std::vector<Axis>& axes() {
       {"thread_updates", {"step", "counters"}, {}, {}},
       // how the cell-linked list cuts its home cells between threads (default fluid)
       {"thread_split", {"step", "counters"}, {}, {}},
+      // the order of each cell's particles after reordering (default index)
+      {"inner_order", {"step", "counters"}, {}, {}},
       // the pair kernel's arithmetic (default double)
       {"precision", {"step", "counters"}, {}, {}},
       // the search family's peers and clouds (benchmarks/search_benchmark.cpp;

@@ -28,6 +28,10 @@ const char* to_string(InitialOrder o) {
   constexpr const char* names[] = {"generated", "shuffled"};
   return names[static_cast<int>(o)];
 }
+const char* to_string(InnerOrder o) {
+  constexpr const char* names[] = {"index", "morton"};
+  return names[static_cast<int>(o)];
+}
 const char* to_string(ThreadUpdates u) {
   constexpr const char* names[] = {"private", "phased"};
   return names[static_cast<int>(u)];

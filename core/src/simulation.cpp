@@ -81,6 +81,10 @@ void Simulation::init(Communicator* comm) {
   if (config_.thread_split == ThreadSplit::dynamic && config_.thread_updates == ThreadUpdates::phased)
     throw ConfigError("thread_split = dynamic needs thread_updates = private (the phases of phased updates are "
                       "planned on fixed key ranges per thread); use thread_split = interactions with phased updates");
+  if (config_.inner_order != InnerOrder::index && !config_.reorder)
+    throw ConfigError("inner_order = " + std::string(to_string(config_.inner_order)) +
+                      " orders each cell's particles when the arrays are reordered, and reorder = false never "
+                      "reorders them; set reorder = true, or leave inner_order = index");
   if (config_.precision == Precision::mixed && !config_.simd)
     throw ConfigError("precision = mixed has only the vectorised pair kernel (simd = off is an ablation of the "
                       "double kernel); use simd = on, or precision = double");
@@ -113,6 +117,7 @@ std::unique_ptr<ParticleGrid> Simulation::make_particle_grid() const {
   auto grid = std::make_unique<ParticleGrid>(case_.domain, config_.cell_order, config_.gridder, gridder_options(),
                                              case_.period_y);
   grid->set_threads(config_.threads);
+  grid->set_inner_order(config_.inner_order);
   return grid;
 }
 

@@ -1017,6 +1017,37 @@ class TestClaims(unittest.TestCase):
                               {"s_per_step": 0.1})])
         self.assertEqual(C.evaluate(self.claim("vl_masked_over_gather"), no_axis)["verdict"], "not measured")
 
+    def test_inner_order_claims(self):
+        """beyond_inner_order's claims: index over morton with the masked loop
+        in double (mixed, gather and both orders' lanes per pair related),
+        and the masked loop in morton order in µs per particle-step, read from
+        the morton rows only (the index rows of the same axes must not be taken)."""
+        rows = []
+        for order, masked, gather, lanes in (("index", 0.100, 0.140, 2.24), ("morton", 0.080, 0.138, 1.6)):
+            for precision, scale in (("double", 1.0), ("mixed", 0.7)):
+                base = {"particles": 118853, "gridder": "B", "reorder": 1, "lattice": "cubic", "h_coefficient": 1.0,
+                        "list": "cll", "precision": precision, "inner_order": order}
+                rows.append(({**base, "pair_loop": "gather"}, {"s_per_step": gather * scale, "s_force": gather / 2}))
+                rows.append(({**base, "pair_loop": "masked"},
+                             {"s_per_step": masked * scale, "s_force": masked / 2, "kernel_lanes_per_pair": lanes}))
+        data = synthetic(rows)
+        r = C.evaluate(self.claim("index_over_morton_masked"), data)
+        self.assertAlmostEqual(r["value"], 0.100 / 0.080, places=6)
+        self.assertEqual(r["verdict"], "reproduced", r)
+        self.assertAlmostEqual(r["related"]["mixed"]["value"], 0.100 / 0.080, places=6)
+        self.assertAlmostEqual(r["related"]["gather"]["value"], 0.140 / 0.138, places=6)
+        self.assertAlmostEqual(r["related"]["kernel_lanes_per_pair_index"]["value"], 2.24, places=6)
+        self.assertAlmostEqual(r["related"]["kernel_lanes_per_pair_morton"]["value"], 1.6, places=6)
+        r = C.evaluate(self.claim("step_us_mixed_masked_morton"), data)
+        self.assertAlmostEqual(r["value"], 1e6 * 0.080 * 0.7 / 118853, places=6)
+        self.assertEqual(r["verdict"], "reproduced", r)
+        r = C.evaluate(self.claim("step_us_double_masked_morton"), data)
+        self.assertAlmostEqual(r["value"], 1e6 * 0.080 / 118853, places=6)
+        self.assertEqual(r["verdict"], "reproduced", r)
+        no_axis = synthetic([({"particles": 118853, "list": "cll", "gridder": "B", "reorder": 1, "pair_loop": "masked"},
+                              {"s_per_step": 0.1})])
+        self.assertEqual(C.evaluate(self.claim("index_over_morton_masked"), no_axis)["verdict"], "not measured")
+
     def test_regression_flips_a_claim_end_to_end(self):
         """fake_bench --fake-regress: slowing VL_X turns its gain into a loss."""
         with tempfile.TemporaryDirectory() as tmp:

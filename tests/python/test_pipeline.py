@@ -34,7 +34,7 @@ class TinyPipeline(unittest.TestCase):
             ablations = sorted(p.stem for p in (ROOT / "experiments").glob("*.json")
                                if p.stem.startswith("ablation_")
                                or p.stem in ("beyond_loops", "beyond_thread_updates", "beyond_scaling", "beyond_dynamic", "beyond_precision",
-                                              "beyond_pair_loop", "beyond_vl_loop",
+                                              "beyond_pair_loop", "beyond_vl_loop", "beyond_inner_order",
                                               "search_api", "first_call"))
             run = subprocess.run(
                 [PYTHON, "-m", "experiments.run", "--size", "tiny", "--run-id", "e2e", "--only", ",".join(ablations),

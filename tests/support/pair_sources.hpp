@@ -29,8 +29,10 @@ inline std::string combo(GridderKind g, CellOrderKind o, bool reorder) {
 /// Pairs the simulation's path finds: ParticleGrid (cells of side sqrt(support2),
 /// optional reordering) swept by CellSweep with the shared distance filter.
 inline PairSet swept_pairs(ParticleSet& ps, const Box& domain, double support2, GridderKind g, CellOrderKind o, bool reorder,
-                    const GridderOptions& options = {}, double period_y = 0) {
+                    const GridderOptions& options = {}, double period_y = 0,
+                    InnerOrder inner = InnerOrder::index) {
   ParticleGrid pg(domain, o, g, options, period_y);
+  pg.set_inner_order(inner);
   pg.build(ps, std::sqrt(support2), reorder);
   if (reorder) {  // reordered: keys are non-decreasing, out particles last
     const auto& keys = pg.cell_keys();

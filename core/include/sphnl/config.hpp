@@ -57,6 +57,7 @@ struct RunConfig {
   CellOrderKind cell_order = CellOrderKind::sort_x;
   bool reorder = true;
   int reorder_every = 1;
+  InnerOrder inner_order = InnerOrder::index;  // each cell's particles after reordering (kinds.hpp)
   int max_parts_in_cell = 0;   // gridder C row length; 0 = sized from h/dx
   ListKind list = ListKind::cll;
   int list_steps = 1;          // n_s: C of VL_C, X of VL_X

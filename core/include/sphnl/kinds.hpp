@@ -27,6 +27,13 @@ enum class SlidingVariant : std::uint8_t { occupied, shift_all };
 /// Memory order of the particles at t = 0 (and after a restore): as the case
 /// generator made them (nearly cell-ordered), or shuffled with a fixed seed.
 enum class InitialOrder : std::uint8_t { generated, shuffled };
+/// The order of each cell's particles when the arrays are reordered (config
+/// `inner_order`): `index`, increasing particle index (a stable sort by cell,
+/// as the paper's reordering, §2.4); `morton`, the Z-order of the particle's
+/// sub-cell in a 4 x 4 x 4 division of its cell, so that a run of 8
+/// consecutive particles (a j-block of `pair_loop=masked`) is a compact
+/// cluster rather than a slab of the cell.
+enum class InnerOrder : std::uint8_t { index, morton };
 
 /// How threads > 1 keep from adding to one particle at once in a pair pass
 /// (both particles of a pair are updated): `private_accumulators` (config
@@ -67,6 +74,7 @@ const char* to_string(ListKind l);
 const char* to_string(PairLoopKind p);
 const char* to_string(SlidingVariant v);
 const char* to_string(InitialOrder o);
+const char* to_string(InnerOrder o);
 const char* to_string(ThreadUpdates u);
 const char* to_string(ThreadSplit s);
 const char* to_string(Precision p);

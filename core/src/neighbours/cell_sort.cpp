@@ -2,7 +2,9 @@
 
 #include <omp.h>
 
+#include <algorithm>
 #include <cfloat>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -58,6 +60,7 @@ void CellSort::place(const CellGrid& grid, const CellOrder& order, Gridder& grid
 }
 
 void CellSort::sort(const Gridder& gridder, std::size_t owned) {
+  owned_ = owned;
   gridder.cell_order_permutation(permutation_);
   ghosts_.clear();
   if (owned < keys_.size()) {
@@ -76,6 +79,63 @@ void CellSort::sort(const Gridder& gridder, std::size_t owned) {
     for (std::size_t i = 0; i < keys_.size(); ++i)
       if (keys_[i] == kNoCell) permutation_.push_back(static_cast<std::uint32_t>(i));
   permutation_.insert(permutation_.end(), ghosts_.begin(), ghosts_.end());
+}
+
+namespace {
+
+/// The sub-cell of coordinate v along one axis: its position inside the
+/// cell-sized tile it falls in, in CellSort::kInnerDivisions steps.
+unsigned sub_cell(double v, double lo, double inv_side) {
+  const double u = (v - lo) * inv_side;
+  const int s = static_cast<int>((u - std::floor(u)) * CellSort::kInnerDivisions);
+  return static_cast<unsigned>(std::clamp(s, 0, CellSort::kInnerDivisions - 1));
+}
+
+/// Z-order (Morton) code of the sub-cell (sx, sy, sz), each below 4: 6 bits.
+unsigned sub_cell_code(unsigned sx, unsigned sy, unsigned sz) {
+  unsigned code = 0;
+  for (int bit = 0; bit < 2; ++bit)
+    code |= (((sx >> bit) & 1u) << (3 * bit)) | (((sy >> bit) & 1u) << (3 * bit + 1)) |
+            (((sz >> bit) & 1u) << (3 * bit + 2));
+  return code;
+}
+static_assert(CellSort::kInnerDivisions == 4, "sub_cell_code interleaves 2 bits per axis");
+
+}  // namespace
+
+void CellSort::order_within_cells(const CellGrid& grid, std::span<const double> x, std::span<const double> y,
+                                  std::span<const double> z) {
+  const std::size_t n = permutation_.size();
+  const auto key_of = [&](std::size_t k) { return keys_[permutation_[k]]; };
+  const auto owned_of = [&](std::size_t k) { return permutation_[k] < owned_; };
+  std::size_t begin = 0;
+  while (begin < n) {
+    // One cell's run: the same key and the same side of the owned/ghost cut.
+    std::size_t end = begin + 1;
+    while (end < n && key_of(end) == key_of(begin) && owned_of(end) == owned_of(begin)) ++end;
+    if (end - begin > 1 && key_of(begin) != kNoCell) {
+      inner_keys_.clear();
+      for (std::size_t k = begin; k < end; ++k) {
+        const std::uint32_t i = permutation_[k];
+        const unsigned code = sub_cell_code(sub_cell(x[i], grid.box.lo[0], grid.inv_cell_size),
+                                            sub_cell(y[i], grid.box.lo[1], grid.inv_cell_size),
+                                            sub_cell(z[i], grid.box.lo[2], grid.inv_cell_size));
+        inner_keys_.push_back((std::uint64_t{code} << 32) | i);
+      }
+      // Insertion sort: the points of a cell come in index order, which is
+      // the last reordering's sub-cell order, so few have moved out of place
+      // and this costs about one comparison a point.
+      for (std::size_t a = 1; a < inner_keys_.size(); ++a) {
+        const std::uint64_t key = inner_keys_[a];
+        std::size_t b = a;
+        for (; b > 0 && inner_keys_[b - 1] > key; --b) inner_keys_[b] = inner_keys_[b - 1];
+        inner_keys_[b] = key;
+      }
+      for (std::size_t k = begin; k < end; ++k)
+        permutation_[k] = static_cast<std::uint32_t>(inner_keys_[k - begin]);
+    }
+    begin = end;
+  }
 }
 
 void CellSort::cell_starts(const Gridder& gridder, std::uint32_t num_keys, std::vector<std::uint32_t>& start) const {

@@ -18,6 +18,7 @@ bool ParticleGrid::build(ParticleSet& ps, double cell_size, bool reorder, std::s
   if (!reorder) return false;
 
   sort_.sort(*gridder_, owned);  // a distributed run: owned particles first, ghosts last
+  if (inner_order_ == InnerOrder::morton) sort_.order_within_cells(grid_, ps.x, ps.y, ps.z);
   ps.permute(sort_.permutation(), f64_scratch_, u32_scratch_, threads_);
   sort_.permute_keys();
   gridder_->renumber(sort_.inverse_permutation());

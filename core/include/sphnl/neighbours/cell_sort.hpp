@@ -11,6 +11,7 @@
 //               of every point, the gridder built on them, and, when
 //               reordering, the permutation into cell order (gridded points
 //               by key, out points last) with the keys in that order.
+#include <cstddef>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -60,6 +61,14 @@ class CellSort {
   /// below the number of points (a distributed run), points from `owned` on
   /// are ghosts: they come last, after the out points, in cell order.
   void sort(const Gridder& gridder, std::size_t owned = ~std::size_t{0});
+  /// After sort(), for InnerOrder::morton: each cell's points in
+  /// permutation() re-sorted by the Z-order of their sub-cell in a
+  /// kInnerDivisions^3 division of the cell (ties by index), so that
+  /// consecutive points of a cell are spatial clusters. Cells stay where
+  /// sort() put them; owned points and ghosts are never mixed.
+  void order_within_cells(const CellGrid& grid, std::span<const double> x, std::span<const double> y,
+                          std::span<const double> z);
+  static constexpr int kInnerDivisions = 4;
   /// After place(): start[k] = the points of keys below k (the first point of
   /// key k in cell order), for every key and one past the last (num_keys + 1
   /// entries; out points are not counted). Copied from the gridder's
@@ -77,11 +86,14 @@ class CellSort {
   std::span<const std::uint32_t> permutation() const { return permutation_; }
   std::size_t bytes() const {
     return (keys_.capacity() + permutation_.capacity() + scratch_.capacity() + ghosts_.capacity()) *
-           sizeof(std::uint32_t);
+               sizeof(std::uint32_t) +
+           inner_keys_.capacity() * sizeof(std::uint64_t);
   }
 
  private:
   std::vector<std::uint32_t> keys_, permutation_, scratch_, ghosts_;
+  std::size_t owned_ = ~std::size_t{0};  // the `owned` of the last sort()
+  std::vector<std::uint64_t> inner_keys_;  // order_within_cells: sub-cell code << 32 | index, one cell at a time
 };
 
 }  // namespace sphnl

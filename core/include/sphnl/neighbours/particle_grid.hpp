@@ -39,6 +39,8 @@ class ParticleGrid {
     threads_ = threads < 1 ? 1 : threads;
     gridder_->set_threads(threads_);
   }
+  /// The order of each cell's particles in the next reorderings (kinds.hpp).
+  void set_inner_order(InnerOrder order) { inner_order_ = order; }
   static constexpr std::size_t kAllOwned = ~std::size_t{0};
   /// First ghost index of the last build ([ghost_begin, size) are ghosts, in
   /// cells of other ranks), or CellSweep::kNoGhosts for a serial run: the
@@ -59,6 +61,7 @@ class ParticleGrid {
   Box domain_;
   double period_y_ = 0;
   int threads_ = 1;
+  InnerOrder inner_order_ = InnerOrder::index;
   std::uint32_t ghost_begin_ = ~std::uint32_t{0};
   CellGrid grid_;
   std::unique_ptr<CellOrder> order_;
