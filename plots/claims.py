@@ -651,20 +651,28 @@ def masked_over_gather(med, c):
 
 def _gather_over_masked(med, at, main, others):
     """pair_loop=gather over masked time per step for the configuration
+    at + main; related as _axis_ratio's, with the masked loop's kernel lanes
+    per pair."""
+    return _axis_ratio(med, "pair_loop", "gather", "masked", at, main, others,
+                       lanes={"kernel_lanes_per_pair": "den"})
+
+
+def _axis_ratio(med, axis, num, den, at, main, others, lanes=None):
+    """Time per step with `axis`=num over `axis`=den for the configuration
     at + main; related, the force phase's ratio, the same ratio for each
-    (name, where) of `others` that was measured, and the masked loop's
-    kernel lanes per pair."""
-    gather = _row(med, pair_loop="gather", **main, **at)
-    masked = _row(med, pair_loop="masked", **main, **at)
-    related = {"force_phase": float(gather["s_force"]) / float(masked["s_force"])}
+    (name, where) of `others` that was measured, and kernel_lanes_per_pair
+    of the sides named in `lanes` ({related name: "num" or "den"})."""
+    rows = {"num": _row(med, **{axis: num}, **main, **at), "den": _row(med, **{axis: den}, **main, **at)}
+    related = {"force_phase": float(rows["num"]["s_force"]) / float(rows["den"]["s_force"])}
     for name, where in others:
         try:
-            related[name] = _one(med, pair_loop="gather", **where, **at) / _one(med, pair_loop="masked", **where, **at)
+            related[name] = _one(med, **{axis: num}, **where, **at) / _one(med, **{axis: den}, **where, **at)
         except NotMeasured:
             pass
-    if "kernel_lanes_per_pair" in masked:
-        related["kernel_lanes_per_pair"] = float(masked["kernel_lanes_per_pair"])
-    return float(gather["t"]) / float(masked["t"]), related
+    for name, side in (lanes or {}).items():
+        if "kernel_lanes_per_pair" in rows[side]:
+            related[name] = float(rows[side]["kernel_lanes_per_pair"])
+    return float(rows["num"]["t"]) / float(rows["den"]["t"]), related
 
 
 # ------------------------------- beyond the paper: the order of each cell's particles
@@ -677,21 +685,14 @@ def index_over_morton_masked(med, c):
     if "inner_order" not in med or "pair_loop" not in med:
         raise NotMeasured("no inner_order or pair_loop axis in the results")
     n, note = _at(med, c)
-    at = {"particles": n, "list": "cll", "threads": 1, "kgc": 0}
-    index = _row(med, inner_order="index", pair_loop="masked", precision="double", **at)
-    morton = _row(med, inner_order="morton", pair_loop="masked", precision="double", **at)
-    related = {"force_phase": float(index["s_force"]) / float(morton["s_force"])}
-    for name, where in (("mixed", {"pair_loop": "masked", "precision": "mixed"}),
-                        ("gather", {"pair_loop": "gather", "precision": "double"}),
-                        ("gather mixed", {"pair_loop": "gather", "precision": "mixed"})):
-        try:
-            related[name] = _one(med, inner_order="index", **where, **at) / _one(med, inner_order="morton", **where, **at)
-        except NotMeasured:
-            pass
-    for name, row in (("index", index), ("morton", morton)):
-        if "kernel_lanes_per_pair" in row:
-            related[f"kernel_lanes_per_pair_{name}"] = float(row["kernel_lanes_per_pair"])
-    return float(index["t"]) / float(morton["t"]), note.replace("(paper: ", "(claim read at ") + ", CLL, masked, double", related
+    value, related = _axis_ratio(med, "inner_order", "index", "morton",
+                                 {"particles": n, "list": "cll", "threads": 1, "kgc": 0},
+                                 {"pair_loop": "masked", "precision": "double"},
+                                 (("mixed", {"pair_loop": "masked", "precision": "mixed"}),
+                                  ("gather", {"pair_loop": "gather", "precision": "double"}),
+                                  ("gather mixed", {"pair_loop": "gather", "precision": "mixed"})),
+                                 lanes={"kernel_lanes_per_pair_index": "num", "kernel_lanes_per_pair_morton": "den"})
+    return value, note.replace("(paper: ", "(claim read at ") + ", CLL, masked, double", related
 
 
 for _precision in ("double", "mixed"):
