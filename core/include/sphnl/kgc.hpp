@@ -63,7 +63,8 @@ struct KgcMatrixPass {
     const CubicSpline k = phys->kernel;
     const Home a(v, i);
     double acc[6][kPairBlock] = {};
-    for_each_block_lane<Simd>(first, lanes, blocks, [&](int p, std::size_t j, bool live) SPHNL_INLINE_LANE {
+    using Lane = BlockLane<double>;
+    for_each_block_lane<Simd, double>(first, lanes, blocks, [&](Lane p, std::size_t j, bool live) SPHNL_INLINE_LANE {
       const Terms t = pair(k, a, v, j, live);
       for (int c = 0; c < 6; ++c) acc[c][p] += t.m[c];
     });

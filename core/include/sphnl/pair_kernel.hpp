@@ -104,7 +104,8 @@ struct ForceOp {
     // particle i, not one per block.
     Sum<T> acc[7][kPairBlock] = {};
     Real mu_lane[kPairBlock] = {};
-    for_each_block_lane<Simd>(first, lanes, blocks, [&](int p, std::size_t j, bool live) SPHNL_INLINE_LANE {
+    using Lane = BlockLane<Real>;
+    for_each_block_lane<Simd, Real>(first, lanes, blocks, [&](Lane p, std::size_t j, bool live) SPHNL_INLINE_LANE {
       const Terms t = pair(c, a, v, j, live);
       acc[0][p] -= t.ax; acc[1][p] -= t.ay; acc[2][p] -= t.az; acc[3][p] += t.drho;
       acc[4][p] -= t.ux; acc[5][p] -= t.uy; acc[6][p] -= t.uz;

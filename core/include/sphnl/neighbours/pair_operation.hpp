@@ -21,6 +21,7 @@
 #include <concepts>
 #include <cstddef>
 #include <cstdint>
+#include <type_traits>
 
 #include "sphnl/particle_view.hpp"
 
@@ -52,18 +53,29 @@ concept PairOperation = requires(Op& op, const ParticleView& v, std::uint32_t i,
 /// The lanes of an interact_blocks call: lane(p, j, live) for lane p of every
 /// block, j its entry, `live` whether it is a pair; each block's lanes form
 /// one vector loop (`Simd` = false: kept scalar, the ablation simd=off).
-template <bool Simd, class Lane>
+/// `Real` is the lane's arithmetic: the lane index p and the mask bits are
+/// integers of its width (BlockLane<Real>), so that one vector of the loop
+/// holds one block. GCC sizes a loop's vectors by its narrowest type: with
+/// a 32-bit index beside double arithmetic, 512-bit vectors would take 16
+/// lanes of index, more than a block's 8, and it fell back to two 256-bit
+/// halves per block; a 64-bit index lets it run a double block as one
+/// 512-bit vector (docs/PERFORMANCE.md, "One vector per block").
+template <class Real>
+using BlockLane = std::conditional_t<sizeof(Real) == 8, std::int64_t, std::int32_t>;
+
+template <bool Simd, class Real, class Lane>
 [[gnu::always_inline]] inline void for_each_block_lane(const std::uint32_t* __restrict first,
                                                        const std::uint8_t* __restrict lanes, int blocks, Lane&& lane) {
+  using Int = BlockLane<Real>;
   // The block width hidden from the optimiser: with a known trip count of 8
   // GCC unrolls the lane loop into scalar code before the vectoriser sees it.
-  int width = kPairBlock;
+  Int width = kPairBlock;
   asm("" : "+r"(width));
   for (int b = 0; b < blocks; ++b) {
     const std::size_t j0 = first[b];  // size_t: j0 + p must be affine for the vectoriser
-    const unsigned bits = lanes[b];
+    const Int bits = lanes[b];
 #pragma omp simd if(simd : Simd)
-    for (int p = 0; p < width; ++p) lane(p, j0 + static_cast<std::size_t>(p), ((bits >> p) & 1u) != 0);
+    for (Int p = 0; p < width; ++p) lane(p, j0 + static_cast<std::size_t>(p), ((bits >> p) & 1) != 0);
   }
 }
 
