@@ -164,6 +164,7 @@ int main(int argc, char** argv) {
   benchmark::AddCustomContext("sphnl_compiler", SPHNL_COMPILER);
   benchmark::AddCustomContext("sphnl_git_revision", SPHNL_GIT_REVISION);
   benchmark::AddCustomContext("sphnl_march", SPHNL_MARCH_STR);
+  benchmark::AddCustomContext("sphnl_hardware_gathers", SPHNL_GATHER_STR);
   benchmark::AddCustomContext("sphnl_cpu", cpu_model());
   benchmark::AddCustomContext("sphnl_size", opt.size);
   benchmark::AddCustomContext("sphnl_experiment", experiment.value("id", opt.experiment_path));

@@ -5,6 +5,7 @@ on stderr with a non-zero exit, and dies with its parent; `sphnl run` and
 import json
 import os
 import pathlib
+import shutil
 import signal
 import subprocess
 import sys
@@ -33,6 +34,37 @@ def pid_alive(pid):
     except OSError:
         return False
     return stat.rsplit(")", 1)[1].split()[0] != "Z" and "sphnl_bench" in stat
+
+
+@unittest.skipUnless(shutil.which("cmake"), "needs cmake")
+class ConfigureTest(unittest.TestCase):
+    """SPHNL_GATHER: a value other than AUTO, ON, OFF stops the configure with
+    the allowed values; OFF and ON decide whether the gather tuning flag is on
+    the compile line."""
+
+    def configure(self, *options):
+        with tempfile.TemporaryDirectory() as tmp:
+            r = run(["cmake", "-S", REPO, "-B", tmp, "-DSPHNL_BUILD_TESTS=OFF", "-DSPHNL_BUILD_BENCHMARKS=OFF",
+                     f"-DPython3_EXECUTABLE={sys.executable}", *options])
+            flags = pathlib.Path(tmp, "CMakeFiles", "sphnl_core.dir", "flags.make")
+            return r, flags.read_text() if flags.exists() else ""
+
+    def test_unknown_value_names_the_allowed_ones(self):
+        r, _ = self.configure("-DSPHNL_GATHER=sometimes")
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("SPHNL_GATHER=sometimes: allowed values are AUTO, ON, OFF", r.stderr)
+
+    def test_off_and_on_decide_the_flag(self):
+        r, flags = self.configure("-DSPHNL_GATHER=OFF")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("hardware gathers OFF (SPHNL_GATHER=OFF)", r.stdout)
+        self.assertNotIn("-mtune-ctrl=", flags)
+        r, flags = self.configure("-DSPHNL_GATHER=ON")
+        if "CMAKE_CXX_COMPILER_ID" in r.stderr or "needs GCC" in r.stderr:
+            self.skipTest("not GCC: SPHNL_GATHER=ON is refused")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("hardware gathers ON (SPHNL_GATHER=ON)", r.stdout)
+        self.assertIn("-mtune-ctrl=use_gather_2parts,use_gather_4parts,use_gather", flags)
 
 
 @unittest.skipUnless(BENCH.exists(), f"{BENCH} not built")

@@ -181,9 +181,14 @@ struct ForceOp {
     const R mu = live ? c.h * vdotr / (r2 + c.eta2) : R(0);
     const R rho_bar = R(0.5) * (a.rho + static_cast<R>(v.rho[j]));
     const R inv_rho_bar = R(1) / rho_bar;
+    // Read for every pair, outside the select below: a load made only for
+    // approaching pairs is a masked gather in the compacted loop, which GCC 12
+    // emulates and then cannot mask, so it left that whole loop scalar in
+    // double (docs/PERFORMANCE.md, "The compacted loop in double"). Halving
+    // is exact, so the value is the same bit for bit.
+    const R c_bar = R(0.5) * (a.c + static_cast<R>(v.sound_speed[j]));
     // Artificial viscosity (eq. 3), beta = 0: only approaching pairs.
-    const R pi_ab =
-        vdotr < R(0) ? -c.alpha * R(0.5) * (a.c + static_cast<R>(v.sound_speed[j])) * mu * inv_rho_bar : R(0);
+    const R pi_ab = vdotr < R(0) ? -c.alpha * c_bar * mu * inv_rho_bar : R(0);
     const R pterm = a.pr + static_cast<R>(v.p_over_rho2[j]) + (a.tr + static_cast<R>(v.tensile_r[j])) * fw2 * fw2 + pi_ab;
 
     const R gx = f * dx, gy = f * dy, gz = f * dz;  // grad_a W_ab = -grad_b W_ba
