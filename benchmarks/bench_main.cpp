@@ -26,13 +26,14 @@ namespace sb = sphnl::bench;
 namespace {
 
 const char* kUsage =
-    "usage: sphnl_bench --experiment=experiments/<id>.json [--size=tiny|default|full] [--cache-dir=DIR] [--validate]\n"
+    "usage: sphnl_bench --experiment=experiments/<id>.json [--size=tiny|default|full] [--cache-dir=DIR] [--validate] [--revision]\n"
     "                   [--force-memory]\n"
     "                   [--benchmark_filter=REGEX --benchmark_out=FILE --benchmark_out_format=json\n"
     "                    --benchmark_repetitions=N --benchmark_min_time=SECONDS ...]\n"
     "Registers the experiment's sweep for that size; every benchmark iteration times `window_steps`\n"
     "steps from the cached developed flow (see docs/CONTRACTS.md).\n"
     "--validate only checks the experiment file (unknown or duplicate keys, sweep axes, values) and exits.\n"
+    "--revision prints the git revision this binary was built from (\"-dirty\": with uncommitted code) and exits.\n"
     "A sweep whose memory estimate exceeds the available memory is refused unless --force-memory.\n";
 
 std::string cpu_model() {
@@ -104,6 +105,7 @@ int main(int argc, char** argv) {
     else if (a == "--validate") validate_only = true;
     else if (a == "--force-memory") force_memory = true;
     else if (a == "--help" || a == "-h") { std::fputs(kUsage, stdout); return 0; }
+    else if (a == "--revision") { std::printf("%s\n", SPHNL_GIT_REVISION); return 0; }
     else rest.push_back(argv[i]);
   }
   if (opt.experiment_path.empty()) return fail("--experiment=experiments/<id>.json is required");

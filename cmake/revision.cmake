@@ -7,7 +7,7 @@ execute_process(COMMAND git rev-parse --short=12 HEAD WORKING_DIRECTORY ${SRC}
 if(NOT rc EQUAL 0 OR NOT rev)
   set(rev "unknown")
 else()
-  execute_process(COMMAND git diff --quiet HEAD -- core benchmarks CMakeLists.txt WORKING_DIRECTORY ${SRC}
+  execute_process(COMMAND git diff --quiet HEAD -- core benchmarks cmake CMakeLists.txt WORKING_DIRECTORY ${SRC}
                   RESULT_VARIABLE dirty ERROR_QUIET)
   if(NOT dirty EQUAL 0)
     set(rev "${rev}-dirty")

@@ -249,6 +249,40 @@ def bench_env(args):
     return env
 
 
+def check_builds(args, experiments):
+    """The revision each binary these experiments run was built from, refused
+    (RunError) where it is not this checkout's code (M.build_mismatch): a
+    bench left over from before a commit or a checkout would measure other
+    code under this revision's name. --allow-other-build REASON measures
+    anyway and records the reason, which the report shows."""
+    binaries = [("bench", args.bench, "--revision")]
+    families = {exp["benchmark"] for exp in experiments}
+    if "counters" in families:
+        binaries.append(("counters bench", args.counters_bench, "--revision"))
+    if "mpi" in families:
+        binaries.append(("sphnl", args.sphnl, "--version"))
+    builds = {}
+    for what, path, flag in binaries:
+        if not pathlib.Path(path).is_file():
+            continue  # its own runner says so when it is needed
+        cmd = [sys.executable, str(path)] if pathlib.Path(path).suffix == ".py" else [str(path)]
+        rev = M.binary_revision(cmd + [flag], env=bench_env(args))
+        builds[what] = rev
+        if rev is None:
+            print(f"warning: the {what} {path} does not report the revision it was built from; "
+                  "its results cannot be tied to this checkout's code", file=sys.stderr)
+            continue
+        why = M.build_mismatch(rev)
+        if why and not args.allow_other_build:
+            raise RunError(f"the {what} {path} does not measure this checkout's code: {why}. Rebuild it "
+                           "(make build; make counters-build for the counters bench), or pass "
+                           "--allow-other-build REASON to measure it anyway (the report shows the reason)", 2)
+        if why:
+            print(f"warning: measuring with the {what} although {why} (--allow-other-build)", file=sys.stderr)
+            builds["other_build_reason"] = f"{args.allow_other_build} ({what}: {why})"
+    return builds
+
+
 def validate_experiments(args, experiments):
     """Every experiment file checked by the bench's own schema (sphnl_bench
     --validate: unknown or duplicate keys, wrong types, values out of range,
@@ -579,6 +613,10 @@ def parse_args(argv):
                    help="add results to a run folder even though the code differs from its earlier "
                         "parts' (dirty tree, other revision or bench binary); REASON is recorded in "
                         "machine.json and shown in the report")
+    p.add_argument("--allow-other-build", metavar="REASON",
+                   help="measure with a bench (or sphnl) built from other code than this checkout's "
+                        "(another revision whose code differs, or uncommitted changes on one side); "
+                        "REASON is recorded in machine.json and shown in the report")
     p.add_argument("--dry-run", action="store_true",
                    help="print the plan and the model time estimate, run nothing")
     p.add_argument("-v", "--verbose", action="store_true",
@@ -587,6 +625,9 @@ def parse_args(argv):
     if args.force_merge is not None and not args.force_merge.strip():
         p.error("--force-merge needs a reason (it is shown in the report), e.g. "
                 "--force-merge 'comment-only change between the parts'")
+    if args.allow_other_build is not None and not args.allow_other_build.strip():
+        p.error("--allow-other-build needs a reason (it is shown in the report), e.g. "
+                "--allow-other-build 'bench of the previous commit, only a comment changed'")
     if args.max_n is not None and args.max_n < 1:
         p.error(f"--max-n must be a positive particle count, not {args.max_n}")
     args.run_id = args.run_id or args.size
@@ -642,6 +683,7 @@ def main(argv=None):
         validate_experiments(args, [exp for exp, _ in todo])
         machine_path = out_dir / "machine.json"
         args.part = part_record(args)
+        args.part["builds"] = check_builds(args, [exp for exp, _ in todo])
         old = read_machine(machine_path)
         before = earlier_parts(old) if has_results(out_dir) else []
         refusal = M.merge_refusal(before, args.part) if before else None

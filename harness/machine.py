@@ -79,6 +79,68 @@ def git_dirty():
     return bool(_cmd("git", "status", "--porcelain", "--", ".", ":!results"))
 
 
+# What a sphnl binary is built from (cmake/revision.cmake marks a build
+# "-dirty" by the same paths): a change elsewhere (docs, plots, results) does
+# not change what is measured.
+CODE_PATHS = ("core", "benchmarks", "cmake", "CMakeLists.txt")
+
+
+def binary_revision(cmd, env=None):
+    """The revision a sphnl binary reports (cmd: `sphnl_bench --revision`,
+    `sphnl --version`): the first word of its output that looks like one, or
+    None where it cannot say."""
+    try:
+        out = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, timeout=60, cwd=REPO,
+                             env=env)
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    words = out.stdout.split() if out.returncode == 0 else []
+    revs = [w for w in words if re.fullmatch(r"[0-9a-f]{7,40}(-dirty)?|unknown", w)]
+    return revs[0] if revs else None
+
+
+def build_mismatch(built, repo=REPO):
+    """Why a binary built from revision `built` (as it reports it) does not
+    measure this checkout's code, or None when it does or cannot be told
+    ("unknown": built outside git). The code of two revisions is the same
+    when CODE_PATHS do not differ between them; a "-dirty" build holds
+    uncommitted changes, which match only a checkout with uncommitted code
+    changes on the same revision (that much can be checked; the changes
+    themselves cannot, and git_dirty records them)."""
+    if built in (None, "unknown"):
+        return None
+    base, built_dirty = built.removesuffix("-dirty"), built.endswith("-dirty")
+
+    def git(*a):
+        try:
+            return subprocess.run(["git", *a], capture_output=True, text=True, timeout=60, cwd=repo,
+                                  env={**os.environ, "LC_ALL": "C"})
+        except (OSError, subprocess.TimeoutExpired):
+            return None
+    head = git("rev-parse", "--short=12", "HEAD")
+    if head is None or head.returncode != 0:
+        return None  # not a git checkout: nothing to compare with
+    head = head.stdout.strip()
+    known = git("cat-file", "-e", f"{base}^{{commit}}")
+    if known is None or known.returncode != 0:
+        return f"it was built from revision {built}, which this repository does not hold"
+    changed = git("diff", "--name-only", base, "HEAD", "--", *CODE_PATHS)
+    if changed is not None and changed.stdout.strip():
+        files = changed.stdout.split()
+        more = f" and {len(files) - 3} more" if len(files) > 3 else ""
+        return (f"it was built from revision {built}, and the code changed since then "
+                f"(HEAD {head}: {', '.join(files[:3])}{more})")
+    local = git("status", "--porcelain", "--", *CODE_PATHS)
+    tree_dirty = bool(local is not None and local.stdout.strip())
+    if built_dirty and not tree_dirty:
+        return (f"it was built from uncommitted changes on {base} ({built}), which this checkout "
+                f"(HEAD {head}, clean code) does not hold")
+    if tree_dirty and not built_dirty:
+        return (f"it was built from the committed code of {base}, and this checkout has uncommitted "
+                "changes to the code since")
+    return None
+
+
 def sha256(path):
     try:
         h = hashlib.sha256()

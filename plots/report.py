@@ -115,6 +115,11 @@ def machine_section(run_dir):
         where = f", on {M.describe_identity(part['machine'])}" if part.get("machine") else ""
         rows.append(("Earlier part", f"{part.get('date', '?')}, revision "
                                      f"{(part.get('git_revision') or '?')[:12]}{cap}{where}{forced}"))
+    for part in (m.get("parts") or [m]):
+        reason = (part.get("builds") or {}).get("other_build_reason")
+        if reason:
+            rows.append(("Other build", f"**yes** ({part.get('date', '?')}): measured with a binary built from "
+                                        f"other code than the checkout, --allow-other-build: {reason}"))
     if m.get("forced_merge"):
         rows.append(("Forced merge", "**yes**: parts from a dirty tree or different code were merged "
                                      f"with --force-merge ({m.get('forced_merge_reason') or 'no reason given'})"))

@@ -18,6 +18,7 @@ Test knobs (flag or environment variable):
   --fake-error K:V       FAKE_BENCH_ERROR    report configs with segment K:V as errors
   --fake-fail            FAKE_BENCH_FAIL=1   write half the output, then exit 1
   --fake-delay S         FAKE_BENCH_DELAY    sleep S seconds per benchmark
+  --revision             FAKE_BENCH_REVISION print it (default "unknown") and exit
   --fake-snapshot S      FAKE_BENCH_SNAPSHOT report (without spending it) S seconds of
                                              snapshot development, as sphnl_bench does
 """
@@ -113,6 +114,9 @@ def parse_args(argv):
 
 
 def main(argv=None):
+    if "--revision" in (sys.argv[1:] if argv is None else argv):
+        print(os.environ.get("FAKE_BENCH_REVISION", "unknown"))  # like sphnl_bench: what it was built from
+        return 0
     args = parse_args(argv)
     try:
         float(args.benchmark_min_time)  # GB 1.7.1 rejects '0.5s' and exits 1

@@ -636,6 +636,56 @@ class TestProvenance(TempDirCase):
         self.assertEqual([r["round"] for r in rounds], list(range(len(rounds))))
         self.assertEqual({r["git_revision"][0] for r in rounds}, {"a", "b"})
 
+    def test_a_bench_built_from_other_code_is_refused_unless_allowed(self):
+        # A revision this repository does not hold: refused whatever the tree's state.
+        other = {"FAKE_BENCH_REVISION": "0000000abcde"}
+        code, _, err = run_cli("--size", "tiny", "--results-dir", self.tmp, "--bench", FAKE,
+                               "--run-id", "r", "--only", "fig06", env=other)
+        self.assertEqual(code, 2, err)
+        self.assertIn("does not measure this checkout's code", err)
+        self.assertIn("0000000abcde", err)
+        self.assertIn("--allow-other-build", err)
+        self.assertFalse((self.tmp / "r" / "fig06.json").exists())  # refused before measuring
+        code, _, err = run_cli("--size", "tiny", "--results-dir", self.tmp, "--bench", FAKE, "--run-id", "r",
+                               "--only", "fig06", "--allow-other-build", "bench of a deleted branch", env=other)
+        self.assertEqual(code, 0, err)
+        part = read_doc(self.tmp / "r" / "machine.json")["parts"][-1]
+        self.assertEqual(part["builds"]["bench"], "0000000abcde")
+        self.assertIn("bench of a deleted branch", part["builds"]["other_build_reason"])
+        lines, _ = report.machine_section(self.tmp / "r")
+        self.assertTrue(any("Other build" in line and "deleted branch" in line for line in lines), lines)
+
+    def test_the_build_revision_is_compared_with_the_code_of_the_checkout(self):
+        repo = self.tmp / "repo"
+        (repo / "core").mkdir(parents=True)
+        (repo / "docs").mkdir()
+
+        def git(*a):
+            return subprocess.run(["git", "-c", "user.name=t", "-c", "user.email=t@t", *a], cwd=repo,
+                                  check=True, capture_output=True, text=True).stdout.strip()
+
+        def commit(path, text):
+            (repo / path).write_text(text)
+            git("add", "-A")
+            git("commit", "-q", "-m", path)
+            return git("rev-parse", "--short=12", "HEAD")
+        git("init", "-q")
+        first = commit("core/a.hpp", "int a;\n")
+        docs = commit("docs/x.md", "words\n")
+        self.assertIsNone(M.build_mismatch(first, repo))  # only docs changed since the build
+        self.assertIsNone(M.build_mismatch(docs, repo))
+        self.assertIsNone(M.build_mismatch("unknown", repo))
+        self.assertIn("does not hold", M.build_mismatch("0000000abcde", repo))
+        self.assertIn("uncommitted changes on", M.build_mismatch(docs + "-dirty", repo))
+        code = commit("core/a.hpp", "int b;\n")
+        why = M.build_mismatch(first, repo)
+        self.assertIn("the code changed", why)
+        self.assertIn("core/a.hpp", why)
+        self.assertIsNone(M.build_mismatch(code, repo))
+        (repo / "core" / "a.hpp").write_text("int c;\n")
+        self.assertIn("uncommitted changes to the code", M.build_mismatch(code, repo))
+        self.assertIsNone(M.build_mismatch(code + "-dirty", repo))  # as far as can be told
+
     def test_the_report_names_the_machine_of_each_earlier_part(self):
         out, _ = fake_run(self.tmp, "default", "--only", "fig06", "--max-n", "16000")
         fake_run(self.tmp, "default", "--only", "fig06")  # the rest of fig06: a second part
