@@ -89,13 +89,21 @@ def _n_str(n):
     return f"{n:,.0f}".replace(",", " ")
 
 
+# The N each _at call chose since the last reset: Evaluator.claim records
+# the N a claim was read at (claims.json `at_n`), which is the definition's
+# at_n only where the run measured it.
+_READ_AT = []
+
+
 def _at(med, c):
     """The N to measure a claim at: its at_n when measured, else the largest."""
     ns = sorted(med["particles"].dropna().unique())
     want = c.get("at_n")
     if want in ns or not want:
         n = want or ns[-1]
+        _READ_AT.append(float(n))
         return n, f"N = {_n_str(n)}"
+    _READ_AT.append(float(ns[-1]))
     return ns[-1], f"N = {_n_str(ns[-1])} (paper: N = {_n_str(want)})"
 
 
@@ -1202,8 +1210,15 @@ class Evaluator:
                 raise NotMeasured(f"largest N measured is {_n_str(boot.point['particles'].max())}; "
                                   f"the claim needs N ≥ {_n_str(min_n)}")
             boot.cache_tables()
+            _READ_AT.clear()
             res = measure(fn, c, boot)
             result.update(res)
+            read_at = set(_READ_AT)
+            if len(read_at) == 1:  # one N: the claim's at_n is where it was read
+                n = read_at.pop()
+                result["at_n"] = int(n) if n.is_integer() else n
+                if c.get("at_n") and result["at_n"] != c["at_n"]:
+                    result["at_n_wanted"] = c["at_n"]
             result["repetitions"] = int(boot.point["reps"].min())
             result["rounds"] = int(boot.point["rounds"].min())
             result["verdict"], result["resolve"] = verdict(res["value"], res["ci_low"], res["ci_high"],

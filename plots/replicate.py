@@ -68,8 +68,9 @@ def compare(claims_a, claims_b):
         resolved = va not in UNRESOLVED and vb not in UNRESOLVED
         rows.append({"id": cid, "figure": a.get("figure") or b.get("figure"),
                      "unit": a.get("unit") or b.get("unit"),
-                     "a": {k: a.get(k) for k in ("value", "ci_low", "ci_high", "verdict")},
-                     "b": {k: b.get(k) for k in ("value", "ci_low", "ci_high", "verdict")},
+                     "a": {k: a.get(k) for k in ("value", "ci_low", "ci_high", "verdict", "at_n")},
+                     "b": {k: b.get(k) for k in ("value", "ci_low", "ci_high", "verdict", "at_n")},
+                     "same_n": a.get("at_n") == b.get("at_n") or not (a.get("at_n") and b.get("at_n")),
                      "overlap": overlap(a, b), "same_verdict": va == vb,
                      "resolved_in_both": resolved})
     both = [r for r in rows if r["resolved_in_both"]]
@@ -79,7 +80,8 @@ def compare(claims_a, claims_b):
                "resolved_in_both": len(both), "same_verdict_when_resolved_in_both": len(agree),
                "agreement_when_resolved": (len(agree) / len(both)) if both else None,
                "target_agreement": TARGET_AGREEMENT,
-               "intervals_compared": len(with_ci), "intervals_overlap": sum(r["overlap"] for r in with_ci)}
+               "intervals_compared": len(with_ci), "intervals_overlap": sum(r["overlap"] for r in with_ci),
+               "different_n": sum(not r["same_n"] for r in rows)}
     return rows, summary
 
 
@@ -91,6 +93,16 @@ def _v(side, unit):
     if _finite(side.get("ci_low"), side.get("ci_high")):
         text += f" [{side['ci_low']:{digits}}, {side['ci_high']:{digits}}]"
     return text + ("" if unit in ("fraction", "") else f" {unit}")
+
+
+def _side(r, key):
+    """A run's value, with the N it was read at where the two runs read the
+    claim at different N (a run that left out the largest N reads it lower)."""
+    side = r[key]
+    text = _v(side, r["unit"])
+    if not r.get("same_n", True) and side.get("at_n"):
+        text += f" (N = {side['at_n']:,.0f})".replace(",", " ")
+    return text
 
 
 def markdown(rows, summary, name_a, name_b):
@@ -105,14 +117,16 @@ def markdown(rows, summary, name_a, name_b):
              f"of these, same verdict: {s['same_verdict_when_resolved_in_both']}"
              + (f" ({100 * share:.0f} %; target ≥ {100 * TARGET_AGREEMENT:.0f} %)." if share is not None else "."),
              f"- Intervals that overlap: {s['intervals_overlap']} of the {s['intervals_compared']} claims "
-             "with an interval in both runs.", "",
+             "with an interval in both runs.",
+             f"- Read at different N in the two runs (the N beside the value; not a replication of "
+             f"one measurement): {s['different_n']}.", "",
              "## Claims", "",
              "| Figure | Claim | A | verdict A | B | verdict B | overlap | same verdict |",
              "|---|---|---|---|---|---|---|---|"]
     yes = {True: "yes", False: "**no**", None: "–"}
     for r in rows:
-        lines.append(f"| {r['figure'] or '?'} | `{r['id']}` | {_v(r['a'], r['unit'])} | {r['a']['verdict'] or '–'} "
-                     f"| {_v(r['b'], r['unit'])} | {r['b']['verdict'] or '–'} | {yes[r['overlap']]} "
+        lines.append(f"| {r['figure'] or '?'} | `{r['id']}` | {_side(r, 'a')} | {r['a']['verdict'] or '–'} "
+                     f"| {_side(r, 'b')} | {r['b']['verdict'] or '–'} | {yes[r['overlap']]} "
                      f"| {yes[r['same_verdict']]} |")
     return "\n".join(lines) + "\n"
 

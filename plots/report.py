@@ -43,7 +43,7 @@ TARGET_PP = 2.0        # improvement claims at N >= 31 000: half-width at most 2
 TARGET_RATIO = 5.0     # ratio claims: half-width at most 5 % of the value
 TARGET_RESOLVED = 0.8  # share of claims not `unresolved`
 TINY_RESAMPLES = 20  # a tiny run is a smoke test of the pipeline: its intervals mean nothing
-CLAIM_KEYS = ("id", "figure", "paper_value", "value", "ci_low", "ci_high", "unit", "at_n", "band",
+CLAIM_KEYS = ("id", "figure", "paper_value", "value", "ci_low", "ci_high", "unit", "at_n", "at_n_wanted", "band",
               "verdict", "repetitions", "rounds", "resolve", "note", "per_flow_time",
               "per_experiment", "related", "explanation")
 

@@ -851,6 +851,11 @@ class TestClaims(unittest.TestCase):
         self.assertEqual(r["verdict"], "reproduced", r)
         self.assertAlmostEqual(r["value"], 7.5 / 1.25)
         self.assertIn("paper: N = 150 000", r["note"])
+        # claims.json's at_n is the N the value was read at, not the wanted one
+        self.assertEqual((r["at_n"], r["at_n_wanted"]), (60000, 150000))
+        at_wanted = C.evaluate({**self.claim("A_slower_3x"), "at_n": 31239}, self.gridder_data(slow_a=1.0))
+        self.assertEqual(at_wanted["at_n"], 31239)
+        self.assertNotIn("at_n_wanted", at_wanted)
         r = C.evaluate(self.claim("A_superlinear"), self.gridder_data(1.0))
         self.assertAlmostEqual(r["value"], 1.0)  # t_A / t_B grows as N^1 in gridder_data
 

@@ -504,6 +504,23 @@ class TestClaimsJsonAndReplication(unittest.TestCase):
         self.assertEqual([r["same_verdict"] for r in rows_], [True, False, False])
         self.assertEqual((s["resolved_in_both"], s["same_verdict_when_resolved_in_both"]), (2, 1))
         self.assertEqual(s["agreement_when_resolved"], 0.5)
+        self.assertEqual(s["different_n"], 0)
+
+    def test_compare_marks_a_claim_read_at_different_n(self):
+        a = [{"id": "x", "value": 24.0, "ci_low": 20.0, "ci_high": 25.0, "verdict": "reproduced",
+              "at_n": 1000000, "unit": "x"}]
+        b = [{"id": "x", "value": 17.0, "ci_low": 15.0, "ci_high": 17.5, "verdict": "reproduced",
+              "at_n": 150000, "unit": "x"}]
+        rows_, s = replicate.compare(a, b)
+        self.assertFalse(rows_[0]["same_n"])
+        self.assertEqual(s["different_n"], 1)
+        text = replicate.markdown(rows_, s, "A", "B")
+        self.assertIn("24.00 [20.00, 25.00] x (N = 1 000 000)", text)
+        self.assertIn("17.00 [15.00, 17.50] x (N = 150 000)", text)
+        self.assertIn("Read at different N in the two runs", text)
+        rows_, s = replicate.compare(a, [{**b[0], "at_n": 1000000}])
+        self.assertTrue(rows_[0]["same_n"])
+        self.assertNotIn("(N = ", replicate.markdown(rows_, s, "A", "B"))
 
 
 if __name__ == "__main__":
