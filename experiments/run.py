@@ -249,6 +249,12 @@ def bench_env(args):
     return env
 
 
+def launcher(path):
+    """The command that starts binary `path`: a .py stand-in
+    (tests/python/fake_bench.py) through this interpreter."""
+    return [sys.executable, str(path)] if pathlib.Path(path).suffix == ".py" else [str(path)]
+
+
 def check_builds(args, experiments):
     """The revision each binary these experiments run was built from, refused
     (RunError) where it is not this checkout's code (M.build_mismatch): a
@@ -265,8 +271,7 @@ def check_builds(args, experiments):
     for what, path, flag in binaries:
         if not pathlib.Path(path).is_file():
             continue  # its own runner says so when it is needed
-        cmd = [sys.executable, str(path)] if pathlib.Path(path).suffix == ".py" else [str(path)]
-        rev = M.binary_revision(cmd + [flag], env=bench_env(args))
+        rev = M.binary_revision(launcher(path) + [flag], env=bench_env(args))
         builds[what] = rev
         if rev is None:
             print(f"warning: the {what} {path} does not report the revision it was built from; "
@@ -288,7 +293,7 @@ def validate_experiments(args, experiments):
     --validate: unknown or duplicate keys, wrong types, values out of range,
     with file:line:col) before any benchmark runs, so a misspelt axis cannot
     run and be saved under the wrong labels."""
-    base = [sys.executable, str(args.bench)] if args.bench.suffix == ".py" else [str(args.bench)]
+    base = launcher(args.bench)
     for exp in experiments:
         path = REPO / "experiments" / (exp["id"] + ".json")
         try:
@@ -304,7 +309,7 @@ def validate_experiments(args, experiments):
 def bench_command(args, exp, out_tmp, exp_file, reps):
     """One round: every configuration `reps` times, repetitions randomly
     interleaved across configurations, one discarded warm-up each."""
-    base = [sys.executable, str(args.bench)] if args.bench.suffix == ".py" else [str(args.bench)]
+    base = launcher(args.bench)
     return base + [
         f"--experiment={exp_file}",
         f"--size={args.size}",

@@ -39,13 +39,20 @@ def under_load(record, bench_threads=None):
                for v in (record.get("loadavg_before"), record.get("loadavg_after")))
 
 
-def _cmd(*args):
+def _run(args, cwd=REPO, env=None, timeout=30):
+    """A command's CompletedProcess (text, C locale), or None where it could
+    not be run or did not finish in `timeout` seconds."""
     try:
-        out = subprocess.run(args, capture_output=True, text=True, timeout=30, cwd=REPO,
-                             env={**os.environ, "LC_ALL": "C"})
-        return out.stdout.strip() if out.returncode == 0 else ""
+        return subprocess.run([str(a) for a in args], capture_output=True, text=True, timeout=timeout,
+                              cwd=cwd, env={**(os.environ if env is None else env), "LC_ALL": "C"})
     except (OSError, subprocess.TimeoutExpired):
-        return ""
+        return None
+
+
+def _cmd(*args):
+    """A command's stripped output, or "" where it failed."""
+    out = _run(args)
+    return out.stdout.strip() if out is not None and out.returncode == 0 else ""
 
 
 def _read(path):
@@ -89,12 +96,8 @@ def binary_revision(cmd, env=None):
     """The revision a sphnl binary reports (cmd: `sphnl_bench --revision`,
     `sphnl --version`): the first word of its output that looks like one, or
     None where it cannot say."""
-    try:
-        out = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, timeout=60, cwd=REPO,
-                             env=env)
-    except (OSError, subprocess.TimeoutExpired):
-        return None
-    words = out.stdout.split() if out.returncode == 0 else []
+    out = _run(cmd, env=env, timeout=60)
+    words = out.stdout.split() if out is not None and out.returncode == 0 else []
     revs = [w for w in words if re.fullmatch(r"[0-9a-f]{7,40}(-dirty)?|unknown", w)]
     return revs[0] if revs else None
 
@@ -112,11 +115,7 @@ def build_mismatch(built, repo=REPO):
     base, built_dirty = built.removesuffix("-dirty"), built.endswith("-dirty")
 
     def git(*a):
-        try:
-            return subprocess.run(["git", *a], capture_output=True, text=True, timeout=60, cwd=repo,
-                                  env={**os.environ, "LC_ALL": "C"})
-        except (OSError, subprocess.TimeoutExpired):
-            return None
+        return _run(("git", *a), cwd=repo, timeout=60)
     head = git("rev-parse", "--short=12", "HEAD")
     if head is None or head.returncode != 0:
         return None  # not a git checkout: nothing to compare with
