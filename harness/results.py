@@ -94,6 +94,12 @@ def parse_value(text):
     return text
 
 
+def format_n(n):
+    """A particle count as the paper prints it: a space every three digits
+    (150 000)."""
+    return f"{n:,.0f}".replace(",", " ")
+
+
 def format_value(value):
     if isinstance(value, float) and value.is_integer():
         return str(int(value))

@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 
 from harness import stats as S
-from harness.results import ResultsError, pick
+from harness.results import ResultsError, format_n, pick
 
 MIN_N = 5000  # a claim about performance needs at least this N in the run
 CLAIMS = {}
@@ -85,10 +85,6 @@ def claim(claim_id):
 
 
 # ------------------------------------------------------------------- helpers
-def _n_str(n):
-    return f"{n:,.0f}".replace(",", " ")
-
-
 # The N each _at call chose since the last reset: Evaluator.claim records
 # the N a claim was read at (claims.json `at_n`), which is the definition's
 # at_n only where the run measured it.
@@ -99,12 +95,11 @@ def _at(med, c):
     """The N to measure a claim at: its at_n when measured, else the largest."""
     ns = sorted(med["particles"].dropna().unique())
     want = c.get("at_n")
-    if want in ns or not want:
-        n = want or ns[-1]
-        _READ_AT.append(float(n))
-        return n, f"N = {_n_str(n)}"
-    _READ_AT.append(float(ns[-1]))
-    return ns[-1], f"N = {_n_str(ns[-1])} (paper: N = {_n_str(want)})"
+    n = want if want in ns else ns[-1]
+    _READ_AT.append(float(n))
+    if want and n != want:
+        return n, f"N = {format_n(n)} (paper: N = {format_n(want)})"
+    return n, f"N = {format_n(n)}"
 
 
 def _row(med, **equal):
@@ -135,7 +130,7 @@ def _gain(med, n, ref, var):
     every bootstrap replicate, where a merge would dominate the report's time)."""
     a, b = pick(med, **{**ref, "particles": n}), pick(med, **{**var, "particles": n})
     if a.empty or b.empty:
-        raise NotMeasured(f"no pair {ref} / {var} at N = {_n_str(n)}")
+        raise NotMeasured(f"no pair {ref} / {var} at N = {format_n(n)}")
     t_ref, t = float(a["t"].iloc[0]), float(b["t"].iloc[0])
     return 100.0 * (t_ref - t) / t_ref
 
@@ -171,7 +166,7 @@ def _share(med, c, lst, col):
     n = med["particles"].max()
     row = _row(med, particles=n, list=lst, list_steps=1, kgc=0)
     total = row["s_neighbour_list"] + row["s_force"] + row["s_update"]
-    return 100 * row[col] / total, f"N = {_n_str(n)}, share of the three timed phases"
+    return 100 * row[col] / total, f"N = {format_n(n)}, share of the three timed phases"
 
 
 for _lst, _key in (("cll", "cll"), ("vlc", "vl")):
@@ -202,7 +197,7 @@ def a_superlinear(med, c):
     _need_points(common, 3, "values of N with both A and B")
     ks = {g: _exponent(_series(med, gridder=g, reorder=0)) for g in "ABCD"}
     return (_exponent(a[common] / b[common]),
-            f"(t_A / t_B) ∝ N^k over N = {_n_str(common.min())}..{_n_str(common.max())}",
+            f"(t_A / t_B) ∝ N^k over N = {format_n(common.min())}..{format_n(common.max())}",
             {f"k_{g}": ks[g] for g in "ABCD"})
 
 
@@ -221,7 +216,7 @@ for _g in "ABC":
 def c_memory_20x(med, c):
     n = med["particles"].max()
     m = _times(med, n, "nl_bytes", reorder=0)
-    return m["C"] / max(m["A"], m["B"], m["D"]), f"N = {_n_str(n)}"
+    return m["C"] / max(m["A"], m["B"], m["D"]), f"N = {format_n(n)}"
 
 
 @claim("A_least_memory")
@@ -240,7 +235,7 @@ def _memory_at(med, c, gridder):
     per = row["nl_bytes"] / row["N"]
     if n == c["at_n"]:
         return row["nl_bytes"] / 1e6, f"{note}, {per:.1f} B/particle"
-    return per * c["at_n"] / 1e6, (f"extrapolated linearly from N = {_n_str(row['N'])} "
+    return per * c["at_n"] / 1e6, (f"extrapolated linearly from N = {format_n(row['N'])} "
                                    f"({per:.1f} B/particle)")
 
 
@@ -313,7 +308,7 @@ ORDER_NAMES = ["sort_x", "sort_xy", "sort_xyz", "hilbert"]
 def zorder_index_100x(med, c):
     n = med["particles"].max()
     per = {o: _one(med, "s_per_particle", particles=n, cell_order=o) for o in ORDER_NAMES}
-    return per["sort_xyz"] / per["sort_x"], f"N = {_n_str(n)}", \
+    return per["sort_xyz"] / per["sort_x"], f"N = {format_n(n)}", \
         {f"{o}_over_sort_x": per[o] / per["sort_x"] for o in ORDER_NAMES[1:]}
 
 
@@ -339,7 +334,7 @@ def neighbour_search_nlnn(med, c):
     cand = pd.Series(rows["candidates_per_particle"].to_numpy(float) * n, index=n)
     inter = pd.Series(rows["interactions_per_particle"].to_numpy(float) * n, index=n)
     per_inter = pd.Series(rows["t"].to_numpy(float), index=n) / inter
-    return _exponent(cand), (f"candidate pairs per step ∝ N^k over N = {_n_str(n[0])}..{_n_str(n[-1])}; "
+    return _exponent(cand), (f"candidate pairs per step ∝ N^k over N = {format_n(n[0])}..{format_n(n[-1])}; "
                              f"related: interactions per step, runtime per interaction"), \
         {"k_interactions": _exponent(inter), "k_runtime_per_interaction": _exponent(per_inter),
          "k_runtime": _exponent(pd.Series(rows["t"].to_numpy(float), index=n))}
@@ -412,7 +407,7 @@ def _memory_mb(med, c, lst, at_max_ns):
     n, note = _at(med, c)
     rows = pick(med, particles=n, list=lst, kgc=0)
     if rows.empty:
-        raise NotMeasured(f"no {lst} run at N = {_n_str(n)}")
+        raise NotMeasured(f"no {lst} run at N = {format_n(n)}")
     row = rows.loc[rows["list_steps"].idxmax()] if at_max_ns else rows.iloc[0]
     return row["nl_bytes"] / 1e6, note + (f", n_s = {row['list_steps']}" if at_max_ns else "")
 
@@ -449,7 +444,7 @@ def gain_grows_with_n(med, c):
     slope = np.polyfit(np.log(g.index.to_numpy(float)), g.to_numpy(float), 1)[0]
     span = math.log(g.index.max() / g.index.min())
     return float(slope * span), (f"fitted change of the VL_X improvement (a + b ln N) from "
-                                 f"N = {_n_str(g.index.min())} to {_n_str(g.index.max())}")
+                                 f"N = {format_n(g.index.min())} to {format_n(g.index.max())}")
 
 
 @claim("vl_faster_than_cll_all_N")
@@ -510,7 +505,7 @@ def sphnl_over_nanoflann(med, c):
     peer = m[m["impl"] == "nanoflann"].set_index(PEER_KEYS)["entries_per_s"]
     common = mine.index.intersection(peer.index)
     if not len(common):
-        raise NotMeasured(f"no configuration measured with both sphnl and nanoflann at N = {_n_str(n)}")
+        raise NotMeasured(f"no configuration measured with both sphnl and nanoflann at N = {format_n(n)}")
     ratio = (mine[common] / peer[common]).to_numpy(float)
     related = {"smallest_ratio": float(ratio.min()), "largest_ratio": float(ratio.max())}
     for call in sorted(set(common.get_level_values("call"))):
@@ -842,7 +837,7 @@ def vlx_gain_few_particles_per_rank(med, c):
         related["fitted_change_largest_to_smallest"] = float(
             -np.polyfit(x, every.to_numpy(float), 1)[0] * (x.max() - x.min()))
     n = dist.index.min()
-    return float(dist.loc[n]), f"N/P = {_n_str(n)}, on {'/'.join(map(str, ranks))} ranks of 1 thread", related
+    return float(dist.loc[n]), f"N/P = {format_n(n)}, on {'/'.join(map(str, ranks))} ranks of 1 thread", related
 
 
 def _target_at(med, c):
@@ -1152,7 +1147,7 @@ def _extremum(ext, point, reps, states, layout, level, res):
 
 
 def _fmt_key(state, key):
-    k = _n_str(key) if isinstance(key, (int, float)) and key >= 1000 else f"{key:g}" \
+    k = format_n(key) if isinstance(key, (int, float)) and key >= 1000 else f"{key:g}" \
         if isinstance(key, (int, float)) else str(key)
     return k if state is None else f"{k} (t = {state:g} s)"
 
@@ -1207,8 +1202,8 @@ class Evaluator:
             if boot is None or boot.point.empty or "particles" not in boot.point:
                 raise NotMeasured("no results")
             if boot.point["particles"].max() < min_n:
-                raise NotMeasured(f"largest N measured is {_n_str(boot.point['particles'].max())}; "
-                                  f"the claim needs N ≥ {_n_str(min_n)}")
+                raise NotMeasured(f"largest N measured is {format_n(boot.point['particles'].max())}; "
+                                  f"the claim needs N ≥ {format_n(min_n)}")
             boot.cache_tables()
             _READ_AT.clear()
             res = measure(fn, c, boot)

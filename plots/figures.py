@@ -24,7 +24,7 @@ import numpy as np  # noqa: E402
 
 from harness import stats as S  # noqa: E402
 from harness.fsio import write_atomic  # noqa: E402
-from harness.results import improvement, medians, pick  # noqa: E402
+from harness.results import format_n, improvement, medians, pick  # noqa: E402
 
 plt.rcParams.update({"svg.hashsalt": "sphnl", "savefig.dpi": 110, "axes.grid": True,
                      "grid.alpha": 0.3, "font.size": 10, "legend.fontsize": 9})
@@ -104,10 +104,6 @@ def _footnote(fig, what):
 
 def _plain(label):
     return label.replace("$_C$", "_C").replace("$_X$", "_X")
-
-
-def _fmt_n(n):
-    return f"{n:,.0f}".replace(",", " ")
 
 
 def _curves(med, by, y, labels, x="N"):
@@ -194,14 +190,14 @@ def _metric_vs_n(data, out, fig_id, title, y, by, labels, **equal):
     curves = _med(data, **equal).curves(lambda m: _curves(m, by, y, labels))
     _draw(out, fig_id, title, N_LABEL, [(ylabel, curves, False)])
     n, text = _at_end(curves, unit, best="min")
-    return f"At N = {_fmt_n(n)}, {what}: {text}."
+    return f"At N = {format_n(n)}, {what}: {text}."
 
 
 def _gain_vs_n(data, out, fig_id, title, labels, ref, var, smooth=False, **equal):
     curves = _med(data, **equal).curves(lambda m: _gain_curves(m, labels, ref, var))
     _draw(out, fig_id, title, N_LABEL, [("improvement in time (%)", curves, True)])
     n, text = _at_end(curves, " %", best="max")
-    return (f"At N = {_fmt_n(n)}, improvement from largest [95 % interval]: {text}. "
+    return (f"At N = {format_n(n)}, improvement from largest [95 % interval]: {text}. "
             + (smooth_trend(curves, "ln N", np.log) if smooth else "")).rstrip()
 
 
@@ -294,11 +290,11 @@ def fig14(data, out):
     curves = med.curves(lambda m: _gain_curves(m, {"vlc": LISTS["vlc"], "vlx": LISTS["vlx"]},
                                                lambda _: {"list": "cll"}, lambda lst: {"list": lst},
                                                x="list_steps", on=("particles", "list_steps")))
-    _draw(out, "fig14", f"Fig. 14: improvement over CLL vs $n_s$, N = {_fmt_n(n)}", NS_LABEL,
+    _draw(out, "fig14", f"Fig. 14: improvement over CLL vs $n_s$, N = {format_n(n)}", NS_LABEL,
           [("improvement in time (%)", curves, True)])
     best = [f"{_plain(lab)} {ys.max():.2g} % [{lo[ys.argmax()]:.2g}, {hi[ys.argmax()]:.2g}] at "
             f"n_s = {xs[ys.argmax()]:.0f}" for lab, xs, ys, lo, hi in curves]
-    return (f"At N = {_fmt_n(n)} the largest improvements over CLL [95 % interval] are "
+    return (f"At N = {format_n(n)} the largest improvements over CLL [95 % interval] are "
             + " and ".join(best) + ". " + smooth_trend(curves, "n_s", lambda x: x)).rstrip()
 
 
@@ -306,10 +302,10 @@ def fig15(data, out):
     """Fig. 15: memory of CLL, VL_X and VL_C vs n_s."""
     med, n = _fixed_n(_med(data, **SORTED_B))
     curves = med.curves(lambda m: _curves(m, "list", "mem_mb", LISTS, x="list_steps"))
-    _draw(out, "fig15", f"Fig. 15: memory vs $n_s$, N = {_fmt_n(n)}", NS_LABEL,
+    _draw(out, "fig15", f"Fig. 15: memory vs $n_s$, N = {format_n(n)}", NS_LABEL,
           [("neighbour-structure memory (MB)", curves, False)])
     ns, text = _at_end(curves, " MB", best="min")
-    return f"At N = {_fmt_n(n)} and n_s = {ns:.0f}, memory from smallest: {text}."
+    return f"At N = {format_n(n)} and n_s = {ns:.0f}, memory from smallest: {text}."
 
 
 def fig16(data, out):
@@ -328,7 +324,7 @@ def fig17(data, out):
     _draw(out, "fig17", "Fig. 17: improvement of VL$_X$ over CLL, with and without KGC ($n_s$ = 7)",
           N_LABEL, [("improvement in time (%)", curves, True)])
     n, text = _at_end(curves, " %", best="max")
-    return f"At N = {_fmt_n(n)}, improvement of VL_X over CLL (same correction) [95 % interval]: {text}."
+    return f"At N = {format_n(n)}, improvement of VL_X over CLL (same correction) [95 % interval]: {text}."
 
 
 def cellindex(data, out):
@@ -339,7 +335,7 @@ def cellindex(data, out):
     _draw(out, "cellindex", "Cost of the cell index per particle (Section 3.2)", N_LABEL,
           [("ns per particle", curves, False)])
     n, text = _at_end(curves, " ns", best="min")
-    return f"At N = {_fmt_n(n)}, nanoseconds per particle from cheapest: {text}."
+    return f"At N = {format_n(n)}, nanoseconds per particle from cheapest: {text}."
 
 
 def _thread_curves(med):
@@ -372,7 +368,7 @@ def beyond_threads(data, out):
         panels.append(("speed-up over 1 thread", speed, False))
     _draw(out, "beyond_threads", "Beyond the paper: threads and larger N", N_LABEL, panels)
     n, text = _at_end(speed or per, "x" if speed else " µs", best="max" if speed else "min")
-    return f"At N = {_fmt_n(n)}, " + (f"speed-up over one thread: {text}." if speed
+    return f"At N = {format_n(n)}, " + (f"speed-up over one thread: {text}." if speed
                                        else f"µs per particle-step: {text}.")
 
 
@@ -413,7 +409,7 @@ def peers(data, out):
     _draw(out, "peers", "Beyond the paper: full neighbour lists, sphnl and nanoflann "
           "(geometric mean over lattice/random clouds, generated/shuffled order)", N_LABEL, panels)
     n, text = _at_end(panels[0][1], " /s", best="max")
-    return (f"At N = {_fmt_n(n)}, list entries per second of a {calls[0]} call from fastest "
+    return (f"At N = {format_n(n)}, list entries per second of a {calls[0]} call from fastest "
             f"[95 % interval]: {text}.\n\n" + _peer_table(med))
 
 
@@ -457,7 +453,7 @@ def _peer_table(med):
     rows = sorted({k[:-1] for k in ratio} | {k[1:] for k in speedup})
     head = (["cloud", "memory order", "call"] + [f"sphnl / nanoflann, {t} thr." for t in threads]
             + [f"{impl} 2 thr. / 1" for impl in IMPLS])
-    lines = [f"Every configuration at N = {_fmt_n(n)} (entries per second; medians [95 % interval]):", "",
+    lines = [f"Every configuration at N = {format_n(n)} (entries per second; medians [95 % interval]):", "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for row in rows:
         cells = [cell("ratio", (*row, t)) for t in threads] + [cell("speedup", (impl, *row)) for impl in IMPLS]
@@ -500,7 +496,7 @@ def _counter_bars(data, out, fig_id, title, configs):
                            color=colours[k % len(colours)], hatch=hatch, edgecolor="white", lw=0.3,
                            label=label if phase == "force" else None)
                     bottom += ys
-            ax.set_xticks(range(len(ns_)), [f"N = {_fmt_n(n)}" for n in ns_])
+            ax.set_xticks(range(len(ns_)), [f"N = {format_n(n)}" for n in ns_])
             ax.set(ylabel=f"{what} per particle-step", title=f"{what}, {CACHE_MODELS[model]}")
             if r == 0 and c == 0:
                 ax.legend(fontsize=7)
@@ -511,7 +507,7 @@ def _counter_bars(data, out, fig_id, title, configs):
     n, model = ns_[-1], models[-1]
     parts = [f"{_plain(label).replace('$n_s$', 'n_s')} {_count(med, 'll_misses', None, particles=n, cache_model=model, **eq):.3g}"
              for label, eq in configs.items()]
-    return (f"At N = {_fmt_n(n)} with the {CACHE_MODELS[model]}, LL misses per particle-step: "
+    return (f"At N = {format_n(n)} with the {CACHE_MODELS[model]}, LL misses per particle-step: "
             + ", ".join(parts) + ".")
 
 
@@ -621,10 +617,10 @@ def beyond_mpi(data, out):
     parts = []
     if speed:
         n, text = _at_end(speed, "x", best="max")
-        parts.append(f"At N = {_fmt_n(n)}, speed-up over one core: {text}.")
+        parts.append(f"At N = {format_n(n)}, speed-up over one core: {text}.")
     if gain:
         parts.append("VL_X improvement over CLL at the smallest N/P of each rank count: " + ", ".join(
-            f"{_plain(lab)} {ys[0]:.3g} % [{lo[0]:.3g}, {hi[0]:.3g}] at N/P = {_fmt_n(xs[0])}"
+            f"{_plain(lab)} {ys[0]:.3g} % [{lo[0]:.3g}, {hi[0]:.3g}] at N/P = {format_n(xs[0])}"
             for lab, xs, ys, lo, hi in gain) + ".")
     return " ".join(parts)
 
@@ -661,7 +657,7 @@ def table1(data, exp):
                      f"| {paper.get(f'table1_vl_{ph}', '?')} % | {shares['vl'][ph]:.1f} % |")
     reps = int(pick(med, particles=n)["reps"].min())
     md = "\n".join(lines) + (
-        f"\n\nMeasured at N = {_fmt_n(pick(med, particles=n)['N'].iloc[0])} (gridder B, SortX, reordered), "
+        f"\n\nMeasured at N = {format_n(pick(med, particles=n)['N'].iloc[0])} (gridder B, SortX, reordered), "
         f"median of {reps} repetition(s); VL = VL_C with n_s = 1. Shares are of the sum of the "
         f"three timed phases, which covers {cols[0]} (CLL) and {cols[1]} (VL) of the wall time per step. "
         f"The intervals of these shares are in the claims table (`table1_*`).\n")

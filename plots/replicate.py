@@ -19,7 +19,7 @@ import pathlib
 import sys
 
 from harness.fsio import write_atomic
-from harness.results import ResultsError
+from harness.results import ResultsError, format_n
 
 HERE = pathlib.Path(__file__).resolve().parent
 UNRESOLVED = ("unresolved", "not measured")
@@ -101,7 +101,7 @@ def _side(r, key):
     side = r[key]
     text = _v(side, r["unit"])
     if not r.get("same_n", True) and side.get("at_n"):
-        text += f" (N = {side['at_n']:,.0f})".replace(",", " ")
+        text += f" (N = {format_n(side['at_n'])})"
     return text
 
 
