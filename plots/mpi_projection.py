@@ -39,6 +39,7 @@ import pandas as pd  # noqa: E402
 
 from harness import decomposition_model as D  # noqa: E402
 from harness.fsio import write_atomic  # noqa: E402
+from harness.results import format_n  # noqa: E402
 
 POWERS = [2 ** k for k in range(11)]
 
@@ -108,7 +109,7 @@ def projection_figure(counts, proj, out):
         axes[0].plot(part["P"], part["ghosts_max"], ORDER_STYLE[order], marker="o", label=f"ghosts, {order}")
     axes[0].plot(part["P"], part["owned_max"], ":", color="0.3", label="owned (both orders)")
     axes[0].set(xscale="log", yscale="log", xlabel="P (ranks)", ylabel="particles per rank (busiest rank)",
-                title=f"counted: N = {int(c['N'].max()):,}, cells of 2h, t = 0".replace(",", " "))
+                title=f"counted: N = {format_n(c['N'].max())}, cells of 2h, t = 0")
     p = pd.DataFrame(proj)
     colours = {}
     for (order, n), part in p.groupby(["order", "N"]):
