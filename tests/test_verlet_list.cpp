@@ -14,6 +14,7 @@
 
 #include "sphnl/neighbours/cell_linked_list.hpp"
 #include "sphnl/neighbours/particle_grid.hpp"
+#include "sphnl/neighbours/verlet_list.hpp"
 #include "sphnl/simulation.hpp"
 #include "support/pair_recorder.hpp"
 
@@ -155,6 +156,25 @@ TEST(VerletList, ListMemoryIsCountedAndGrowsWithTheSkin) {
   const auto ratio = [](const NeighbourStats& s) { return double(s.interactions) / double(s.candidates); };
   EXPECT_LT(ratio(b), ratio(a));
   EXPECT_LE(ratio(a), 1.0);
+}
+
+TEST(VerletList, OneThreadRebuildsIntoTheSameBuffer) {
+  // A rebuild of the same particles reuses the list's memory: after the first
+  // build a long run's builds allocate (and first-touch) nothing, and one
+  // thread keeps one buffer, not two that alternate.
+  Simulation sim(dam_break(ListKind::cll, 1));
+  ParticleSet ps = sim.particles();
+  ParticleGrid grid(sim.case_info().domain, CellOrderKind::sort_x, GridderKind::B, {});
+  const double cell = 2.2 * sim.physics().h();
+  grid.build(ps, cell, false);
+  VerletList list;
+  list.build(grid, ps, cell * cell, 1);
+  const std::size_t first = list.bytes();
+  ASSERT_GT(list.pairs(), 0u);
+  for (int k = 0; k < 3; ++k) {
+    list.build(grid, ps, cell * cell, 1);
+    EXPECT_EQ(list.bytes(), first) << "build " << k + 2 << " allocated";
+  }
 }
 
 TEST(VerletList, TwoThreadsGiveTheSameRunAsOne) {

@@ -17,20 +17,24 @@ std::uint32_t* VerletList::IndexBuffer::room(std::size_t more) {
 template <bool Simd, bool SkipBoundaryPairs>
 void VerletList::build_sweep(const ParticleGrid& pg, ParticleSet& ps, double list_radius2, int threads) {
   // One sweep: each home particle's candidates with r < 2H (coincident pairs
-  // kept) are appended to its thread's chunk as one row.
+  // kept) are appended to its thread's chunk as one row. One thread writes
+  // straight into the list: one buffer, which the next build reuses (two
+  // alternating buffers would double the list's memory, and the second
+  // would be first touched, page by page, at the second build).
   sweep_.run(pg.grid(), pg.order(), pg.gridder(), ps, fields::position, threads,
              [&](int t, CellSweep::Scratch& s, std::uint32_t n_home) {
                Chunk& c = chunks_[t];
+               IndexBuffer& list = threads == 1 ? neighbours_ : c.neighbours;
                const ParticleView v = s.buffer.view();
                const std::uint32_t total = s.buffer.size();
                const std::uint32_t* global = s.buffer.index();
                HomeCandidates<Simd, SkipBoundaryPairs> home(v, total, s.fluid_slots, s.first_partner);
                std::uint64_t tested = 0;
                for (std::uint32_t i = 0; i < n_home; ++i) {
-                 std::uint32_t* out = c.neighbours.room(total - i - 1 + kFilterSlack);
+                 std::uint32_t* out = list.room(total - i - 1 + kFilterSlack);
                  const int m = home.filter(i, list_radius2, out, tested, -1.0);
                  for (int k = 0; k < m; ++k) out[k] = global[out[k]];
-                 c.neighbours.size += static_cast<std::size_t>(m);
+                 list.size += static_cast<std::size_t>(m);
                  c.rows.push_back(global[i]);
                  c.counts.push_back(static_cast<std::uint32_t>(m));
                }
@@ -42,6 +46,7 @@ void VerletList::build(const ParticleGrid& pg, ParticleSet& ps, double list_radi
                        const PairLoopOptions& options) {
   const std::size_t n = ps.size();
   if (static_cast<int>(chunks_.size()) < threads) chunks_.resize(threads);
+  neighbours_.size = 0;
   for (auto& c : chunks_) {
     c.neighbours.size = 0;
     c.rows.clear();
@@ -58,15 +63,13 @@ void VerletList::build(const ParticleGrid& pg, ParticleSet& ps, double list_radi
   }
   // Rows in visit order: threads swept contiguous ranges of cells, so their
   // chunks concatenate in thread order. Particles not gridded (out) get empty rows.
-  std::size_t pairs = 0;
-  for (int t = 0; t < threads; ++t) pairs += chunks_[t].neighbours.size;
+  std::size_t pairs = neighbours_.size;  // one thread: the sweep filled the list itself
+  if (threads > 1)
+    for (int t = 0; t < threads; ++t) pairs += chunks_[t].neighbours.size;
   if (pairs > std::numeric_limits<std::uint32_t>::max())
     throw std::runtime_error("Verlet list holds more than 2^32 candidate pairs (" + std::to_string(n) +
                              " particles); use list=cll or a smaller list_steps / skin_factor");
-  if (threads == 1) {
-    std::swap(neighbours_, chunks_[0].neighbours);  // no copy with one thread
-  } else {
-    neighbours_.size = 0;
+  if (threads > 1) {
     std::uint32_t* dst = neighbours_.room(pairs);
     for (int t = 0; t < threads; ++t)
       dst = std::copy(chunks_[t].neighbours.data.data(), chunks_[t].neighbours.data.data() + chunks_[t].neighbours.size, dst);
@@ -171,7 +174,8 @@ std::size_t VerletList::list_bytes() const {
 }
 
 std::size_t VerletList::bytes() const {
-  std::size_t b = list_bytes() + sweep_.bytes() + visited_.capacity() + phases_.bytes() +
+  std::size_t b = list_bytes() + (neighbours_.data.capacity() - neighbours_.size) * sizeof(std::uint32_t) +
+                  sweep_.bytes() + visited_.capacity() + phases_.bytes() +
                   (key_row_.capacity() + loop_begin_.capacity() + serial_rows_.capacity() * 2) * sizeof(std::uint32_t) +
                   loop_weight_.capacity() * sizeof(double);
   for (const auto& r : phase_rows_) b += r.capacity() * 2 * sizeof(std::uint32_t);
