@@ -62,6 +62,14 @@ RunConfig run_config_of(const Point& p) {
   return config_from_json(j);
 }
 
+bool primed_window_of(const Point& p) {
+  if (!p.count("window_start")) return true;
+  const json& v = p.at("window_start");
+  if (v != "primed" && v != "cold")
+    throw std::runtime_error("sweep axis window_start: " + v.dump() + " is not \"primed\" or \"cold\"");
+  return v == "primed";
+}
+
 double flow_time_of(const Point& p) {
   if (!p.count("flow_time")) return kDefaultFlowTime;
   const json& v = p.at("flow_time");

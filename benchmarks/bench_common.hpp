@@ -46,6 +46,9 @@ inline constexpr double kDefaultFlowTime = 0.35;  // s: the dam has collapsed, t
 /// axes (sphnl::benchmark_only_axes()) are left out and read by their own
 /// accessor (flow_time_of). Progress output is off.
 RunConfig run_config_of(const Point& p);
+/// Whether a step window runs primed (the point's `window_start`, default
+/// "primed"): one untimed step of its Simulation from the same snapshot first.
+bool primed_window_of(const Point& p);
 /// The flow time a step window starts from: the point's `flow_time` (s), else kDefaultFlowTime.
 double flow_time_of(const Point& p);
 

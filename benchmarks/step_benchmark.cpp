@@ -2,6 +2,8 @@
 // one combination of particles, gridder, cell order, reordering, list, n_s
 // (list_steps), KGC, threads and (optional axis) the flow time the window
 // starts from. Every Table I phase, memory and list counters are reported.
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -21,7 +23,7 @@ namespace {
 // The optional ablation axes (README.md, "Ablations") come last; cache_model
 // only in the counters family (the caches valgrind simulates).
 const std::vector<std::string> kAxes = {"particles", "gridder", "cell_order", "reorder", "list", "list_steps",
-                                        "kgc", "threads", "lattice", "h_coefficient", "flow_time",
+                                        "kgc", "threads", "lattice", "h_coefficient", "flow_time", "window_start",
                                         "pair_loop", "simd", "skip_boundary_pairs", "gridder_a_variant",
                                         "initial_order", "extra_loops", "thread_updates", "thread_split", "precision", "inner_order",
                                         "cache_model"};
@@ -36,8 +38,15 @@ double core_fma_peak_gflops(Precision precision) {
   return peak_float;
 }
 
+/// Minor page faults of this process so far (first touches of fresh memory).
+long minor_faults() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return u.ru_minflt;
+}
+
 void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const std::vector<double>& flow_times,
-               int window, const std::string& cache_dir, bool roofline) {
+               int window, const std::string& cache_dir, bool roofline, bool primed) {
   const long sequence = next_run_sequence();
   // Before the windows: measured inside the first one, the peak would be timed with it.
   const double peak = roofline ? core_fma_peak_gflops(cfg.precision) : 0.0;
@@ -54,9 +63,18 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
   int probes = 0;
   MachineWitness witness;  // wall-clock core and memory speed before each window (core_peaks.hpp)
   int witnesses = 0;
+  long faults = 0;  // minor page faults inside the last window
   for (auto _ : state) {
     state.PauseTiming();
     sim.restore(start.particles(), start.time(), start.steps_done(), start.lost());
+    if (primed) {
+      // A long run's step finds its grid, lists and scratch already allocated
+      // and touched; a fresh Simulation would time their first touches (at
+      // 150 000 particles, a Verlet list of ~100 MB page by page). One step
+      // from the same snapshot sizes them exactly as the window's first step.
+      sim.step();
+      sim.restore(start.particles(), start.time(), start.steps_done(), start.lost());
+    }
     if (roofline) {
       const MachineWitness w = measure_machine_witness(cfg.threads);
       witness.core_gflops += w.core_gflops;
@@ -64,8 +82,10 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
       ++witnesses;
       probe_sum += measure_fma_peak_double_gflops(1, 0.005), ++probes;
     }
+    const long faults_before = minor_faults();
     state.ResumeTiming();
     timed_window(sim, window, max_bytes);
+    faults = minor_faults() - faults_before;
     if (roofline) {
       state.PauseTiming();
       probe_sum += measure_fma_peak_double_gflops(1, 0.005), ++probes;
@@ -119,10 +139,15 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
   c["vl_misses"] = static_cast<double>(s.vl_misses);
   c["extra_loop_passes"] = static_cast<double>(s.extra_loop_passes);
   c["list_bytes"] = static_cast<double>(s.max_list_bytes);
+  // What the builds stored, per particle-step: the list phase's work, so its
+  // seconds (and the counters family's misses) can be taken per stored pair.
+  c["list_pairs_built_per_particle_step"] = static_cast<double>(s.list_pairs_built) / steps / n;
   c["forced_rebuilds"] = static_cast<double>(s.forced_rebuilds);
   c["skin_over_h"] = s.skin / sim.physics().h();
   c["snapshot_time"] = start.time();  // at or just past the requested flow_time
   c["run_sequence"] = static_cast<double>(sequence);
+  c["primed_steps"] = primed ? 1.0 : 0.0;
+  c["minor_faults_per_step"] = static_cast<double>(faults) / steps;
 }
 
 }  // namespace
@@ -137,9 +162,13 @@ void register_step_benchmarks(const json& sweep, int window, const Options& opt,
     const std::string name = benchmark_name(family, p, kAxes);
     const double flow_time = flow_time_of(p);
     const bool roofline = family != "counters";
+    const bool primed = primed_window_of(p);
     benchmark::RegisterBenchmark(name.c_str(),
-                                 [cfg, flow_time, flow_times, window, cache = opt.cache_dir, name, roofline](benchmark::State& st) {
-                                   guarded(name, [&] { run_point(st, cfg, flow_time, flow_times, window, cache, roofline); });
+                                 [cfg, flow_time, flow_times, window, cache = opt.cache_dir, name, roofline,
+                                  primed](benchmark::State& st) {
+                                   guarded(name, [&] {
+                                     run_point(st, cfg, flow_time, flow_times, window, cache, roofline, primed);
+                                   });
                                  })
         ->Unit(benchmark::kMillisecond);
   }

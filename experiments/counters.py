@@ -39,7 +39,7 @@ WINDOWS_PER_RUN = 2  # the warm-up window, then the measured one
 # depend on time; the bench's seconds under valgrind mean nothing).
 KEPT = ("n_particles", "n_fluid", "window_steps", "rebuilds", "mean_steps_per_list", "max_steps_per_list",
         "candidates_per_particle", "interactions_per_particle", "nl_bytes", "list_bytes",
-        "forced_rebuilds", "skin_over_h", "snapshot_time")
+        "forced_rebuilds", "skin_over_h", "snapshot_time", "list_pairs_built_per_particle_step")
 # result field prefix -> callgrind events summed (--cache-sim=yes event names)
 EVENTS = {"ir": ("Ir",), "d1_misses": ("D1mr", "D1mw"), "ll_misses": ("DLmr", "DLmw")}
 TOTAL_ONLY = {"i1_misses": ("I1mr",), "ll_instr_misses": ("ILmr",)}
@@ -95,8 +95,21 @@ def entry(name, bench_entry, profile, model, seconds):
            "cpu_time": seconds, "time_unit": "s", "sphnl_round": 0}
     out.update({k: bench_entry[k] for k in KEPT if k in bench_entry})
     out.update(fields)
+    out.update(per_pair_built(fields, bench_entry.get("list_pairs_built_per_particle_step")))
     out.update(model.fields())
     return out
+
+
+def per_pair_built(fields, pairs_built_per_particle_step):
+    """`<event>_neighbour_list_per_pair_built`: the list phase's counts per
+    pair the Verlet-list builds stored, so that builds of lists of different
+    lengths (N, skin) compare per unit of work. {} for CLL (no list) and for
+    benches older than the `list_pairs_built_per_particle_step` counter."""
+    if not pairs_built_per_particle_step:
+        return {}
+    return {f"{name}_neighbour_list_per_pair_built":
+            fields[f"{name}_neighbour_list_per_particle_step"] / pairs_built_per_particle_step
+            for name in EVENTS}
 
 
 def _stem(name):

@@ -80,6 +80,8 @@ TEST(RebuildPolicy, VlcRebuildsExactlyEveryCSteps) {
   EXPECT_EQ(f.stats.list_steps, 12u);
   EXPECT_EQ(f.stats.max_steps_per_list, 4u);
   EXPECT_GT(f.stats.list_pairs, 0u);
+  // the particles did not move: three builds stored the same pairs
+  EXPECT_EQ(f.stats.list_pairs_built, 3u * f.stats.list_pairs);
   EXPECT_DOUBLE_EQ(f.grid.grid().cell_size, 2 * f.flow.h + f.stats.skin);
 }
 

@@ -109,7 +109,8 @@ TEST(ExperimentSchema, BenchmarkOnlyAxesAreTheOnesThatAreNotConfigKeys) {
   // the snapshot's flow time, the search family's peers and clouds, the
   // counters kind's simulated caches: none of them is a run setting
   const std::vector<std::string> only = benchmark_only_axes();
-  EXPECT_EQ(only, (std::vector<std::string>{"flow_time", "impl", "cloud", "memory_order", "call", "pages", "cache_model", "ranks"}));
+  EXPECT_EQ(only, (std::vector<std::string>{"flow_time", "window_start", "impl", "cloud", "memory_order", "call", "pages",
+                                             "cache_model", "ranks"}));
   const std::vector<std::string> keys = config_keys();
   for (const auto& axis : only) EXPECT_EQ(std::count(keys.begin(), keys.end(), axis), 0) << axis;
 }
@@ -127,6 +128,9 @@ TEST(ExperimentSchema, WrongTypesAndValues) {
   EXPECT_HAS(all_errors(with(kValidStep, R"("gridder": ["A"], "cell_order")", R"("gridder": ["E"], "cell_order")")), "sweep.tiny.gridder: config key 'gridder': invalid value \"E\"; allowed: A, B, C, D");
   EXPECT_HAS(all_errors(with(kValidStep, R"("threads": [1]},)", R"("threads": 1},)")), "sweep.tiny.threads: is 1; expected a non-empty array of values");
   EXPECT_HAS(all_errors(with(kValidStep, R"("flow_time": [0.35])", R"("flow_time": [0])")), "sweep.full.flow_time: value 0 is not allowed; expected a number > 0");
+  EXPECT_EQ(all_errors(with(kValidStep, R"("flow_time": [0.35])", R"("flow_time": [0.35], "window_start": ["primed", "cold"])")), "");
+  EXPECT_HAS(all_errors(with(kValidStep, R"("flow_time": [0.35])", R"("flow_time": [0.35], "window_start": ["warm"])")),
+             "sweep.full.window_start: value \"warm\" is not allowed; expected one of primed, cold");
   EXPECT_HAS(all_errors(with(kValidStep, R"("window_steps": {"tiny": 3)", R"("window_steps": {"tiny": 0)")), "window_steps.tiny: is 0; expected an integer >= 1");
   EXPECT_HAS(all_errors(with(kValidStep, R"("benchmark": "step")", R"("benchmark": "steps")")), "benchmark: is \"steps\"; expected one of step, counters, cellindex, search");
   EXPECT_HAS(all_errors(with(kValidStep, R"("tiny": {"particles")", R"("small": {"particles")")), "sweep: unknown size 'small'; allowed: tiny, default, full");

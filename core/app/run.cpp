@@ -213,6 +213,7 @@ json run_summary(const Simulation& sim, double initial_mass, double wall_total_s
                           // Verlet lists (paper §2.5); zero for the cell-linked list
                           {"forced_rebuilds", st.forced_rebuilds},
                           {"list_pairs", st.list_pairs},
+                          {"list_pairs_built", st.list_pairs_built},
                           {"list_bytes", st.list_bytes},
                           {"max_list_bytes", st.max_list_bytes},
                           {"skin_m", st.skin},

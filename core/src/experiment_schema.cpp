@@ -63,6 +63,10 @@ const std::vector<Axis>& axes() {
       // simulated time of the developed flow the window starts from (s): picks
       // the snapshot, not a run setting
       {"flow_time", {"step", "counters"}, {}, positive_number},
+      // what the window's Simulation ran before it (default primed: one step
+      // from the same snapshot, so its buffers already have the window's sizes
+      // as in a long run; cold: a fresh Simulation, first touches timed)
+      {"window_start", {"step", "counters"}, {}, one_of({"primed", "cold"})},
       // ablations (README.md, "Ablations"): optional, default the normal path
       {"pair_loop", {"step", "counters"}, {}, {}},
       {"simd", {"step", "counters"}, {}, {}},

@@ -50,6 +50,7 @@ void RebuildPolicy::prepare(ParticleSet& ps, ParticleGrid& grid, VerletList& ver
     ++stats.builds;
     stats.skin = skin_;
     stats.list_pairs = verlet.pairs();
+    stats.list_pairs_built += stats.list_pairs;
     stats.list_bytes = verlet.list_bytes();
     stats.max_list_bytes = std::max(stats.max_list_bytes, stats.list_bytes);
     if (forced) ++stats.forced_rebuilds;

@@ -23,6 +23,7 @@ struct NeighbourStats {
   std::uint64_t list_steps = 0;         // steps that used a list (sum of list lifetimes)
   std::uint64_t forced_rebuilds = 0;    // builds forced because a particle went out (not by C / dh/2)
   std::uint64_t list_pairs = 0;         // pairs stored in the current list
+  std::uint64_t list_pairs_built = 0;   // pairs stored by the builds, summed over builds (the build's work)
   std::size_t list_bytes = 0;           // bytes of the current list (offsets + indices)
   std::size_t max_list_bytes = 0;       // largest list_bytes seen
   double skin = 0;                      // dh of the current list (m)
