@@ -535,35 +535,6 @@ def counters_reorder(data, out):
                          {"not reordered": {"reorder": 0}, "reordered": {"reorder": 1}})
 
 
-def counters_vl_build(data, out):
-    """The list phase's counts per stored pair against N (VL_X): instructions,
-    D1 and LL misses, one line per cache model. Exact counts: no intervals."""
-    if not len(data) or (data["error_occurred"].astype(bool)).all():
-        raise NoData("no successful counters entries")
-    med = medians(data[~data["error_occurred"].astype(bool)])
-    models = [m for m in CACHE_MODELS if m in set(med.get("cache_model", []))]
-    col = "{}_neighbour_list_per_pair_built"
-    if not models or col.format("ir") not in med:
-        raise NoData("no cache_model or no per-stored-pair counts (a bench without list_pairs_built_per_particle_step)")
-    fig, axes = plt.subplots(1, len(COUNTER_METRICS), figsize=(15, 4.2), squeeze=False)
-    for ax, (metric, what) in zip(axes[0], COUNTER_METRICS):
-        for model in models:
-            rows = pick(med, cache_model=model).sort_values("N")
-            ax.plot(rows["N"], rows[col.format(metric)], "o-", label=CACHE_MODELS[model])
-        ax.set(xscale="log", xlabel="N", ylabel=f"{what} per stored pair", title=f"list phase: {what}")
-        ax.set_ylim(bottom=0)
-    axes[0][0].legend(fontsize=7)
-    fig.suptitle("VL_X (n_s = 7) list phase per stored pair (B, SortX, reordered, t = 0.35 s)")
-    fig.text(0.99, -0.01, "callgrind counts of one 21-step window, exact; the list phase includes the per-step "
-             "displacement test", ha="right", va="top", fontsize=7, color="0.4")
-    _save(fig, out, "counters_vl_build")
-    rows = pick(med, cache_model=models[-1]).sort_values("N")
-    lo, hi = rows.iloc[0], rows.iloc[-1]
-    return (f"From N = {format_n(lo['N'])} to {format_n(hi['N'])} ({CACHE_MODELS[models[-1]]}), per stored pair: "
-            + ", ".join(f"{what} {lo[col.format(m)]:.3g} -> {hi[col.format(m)]:.3g}" for m, what in COUNTER_METRICS)
-            + ".")
-
-
 # ------------------------------------------------------------ ranks (mpi kind)
 LAYOUTS = {(2, 1): "2 ranks x 1 thread", (1, 2): "1 rank x 2 threads", (2, 2): "2 ranks x 2 threads",
            (4, 1): "4 ranks x 1 thread", (1, 4): "1 rank x 4 threads"}
@@ -656,7 +627,7 @@ def beyond_mpi(data, out):
 
 FIGURES = {f.__name__: f for f in (fig06, fig07, fig08, fig09, fig10, fig11, fig12, fig13,
                                    fig14, fig15, fig16, fig17, cellindex, beyond_threads, peers,
-                                   counters_lists, counters_reorder, counters_vl_build, beyond_mpi)}
+                                   counters_lists, counters_reorder, beyond_mpi)}
 
 PHASES = (("Neighbour List", "s_neighbour_list", "list"), ("Force Computation", "s_force", "force"),
           ("System Update", "s_update", "update"))

@@ -298,36 +298,6 @@ class CountersReport(unittest.TestCase):
         self.assertIn("vl_outgrows_2010_ll", rec["vl_ns1_slower_13pct"]["explanation"])
         self.assertIsNone(rec["table1_cll_list"]["explanation"])
 
-    def test_vl_build_per_stored_pair_figure_and_entries(self):
-        """counters_vl_build (synthetic counts): the per-stored-pair figure is
-        drawn and its two entries are decided from those counts, one
-        supported (flat instructions), one refuted (misses that do not grow)."""
-        from plots import report
-        exp = R.load_experiments(REPO / "experiments")["counters_vl_build"]
-        entries = []
-        for p in R.sweep_points(exp, "default"):
-            name = R.format_run_name("counters", p)
-            e = {"name": name, "run_name": name, "run_type": "iteration", "repetitions": 1, "repetition_index": 0,
-                 "iterations": 1, "real_time": 60.0, "time_unit": "s", "sphnl_round": 0, "n_particles": p["particles"],
-                 "window_steps": 21, "list_pairs_built_per_particle_step": 20.0}
-            for metric, per_pair in (("ir", 30.0), ("d1_misses", 1.0), ("ll_misses", 0.1)):
-                e[f"{metric}_neighbour_list_per_pair_built"] = per_pair
-                e[f"{metric}_neighbour_list_per_particle_step"] = per_pair * 20.0
-                e[f"{metric}_force_per_particle_step"] = e[f"{metric}_per_particle_step"] = 10 * per_pair * 20.0
-                e[f"{metric}_update_per_particle_step"] = 0.0
-            entries.append(e)
-        with tempfile.TemporaryDirectory() as tmp:
-            run_dir = pathlib.Path(tmp)
-            (run_dir / "counters_vl_build.json").write_text(json.dumps({"context": {}, "benchmarks": entries}))
-            text, records, *_ = report.build(run_dir, REPO / "experiments", resamples=50)
-            self.assertTrue((run_dir / "figures" / "counters_vl_build.png").stat().st_size > 1000)
-        why = text.split("## Why the results differ", 1)[1]
-        same = next(line for line in why.splitlines() if "`vl_build_same_instructions_per_pair`" in line)
-        self.assertIn("| supported |", same)
-        grow = next(line for line in why.splitlines() if "`vl_build_misses_grow_per_pair`" in line)
-        self.assertIn("| refuted |", grow)
-
-
 class ShippedExplanations(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
