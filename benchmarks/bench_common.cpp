@@ -178,4 +178,11 @@ long next_run_sequence() {
 
 double peak_rss_bytes() { return peak_resident_bytes(); }  // not ru_maxrss: see memory_estimate.hpp
 
+ProcessFaults process_faults() {
+  ProcessFaults f;
+  rusage u{};
+  if (getrusage(RUSAGE_SELF, &u) == 0) f = {static_cast<double>(u.ru_minflt), static_cast<double>(u.ru_majflt)};
+  return f;
+}
+
 }  // namespace sphnl::bench

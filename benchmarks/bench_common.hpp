@@ -84,4 +84,11 @@ void register_search_benchmarks(const nlohmann::json& sweep);
 
 double peak_rss_bytes();
 
+/// This process's page faults so far (getrusage; zeros where it fails):
+/// minor, the first touches of fresh memory, and major, reads from disk.
+struct ProcessFaults {
+  double minor = 0, major = 0;
+};
+ProcessFaults process_faults();
+
 }  // namespace sphnl::bench

@@ -13,7 +13,6 @@
 // difference ends the benchmark with an error naming both implementations,
 // and nothing is reported.
 #include <malloc.h>
-#include <sys/resource.h>
 
 #include <cmath>
 #include <fstream>
@@ -100,8 +99,8 @@ struct FaultCount {
 
 FaultCount fault_count() {
   FaultCount f;
-  rusage u{};
-  if (getrusage(RUSAGE_SELF, &u) == 0) f.process = static_cast<double>(u.ru_minflt + u.ru_majflt);
+  const ProcessFaults p = process_faults();
+  f.process = p.minor + p.major;
   std::ifstream vmstat("/proc/vmstat");
   std::string key;
   double value = 0;

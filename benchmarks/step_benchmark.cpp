@@ -2,8 +2,6 @@
 // one combination of particles, gridder, cell order, reordering, list, n_s
 // (list_steps), KGC, threads and (optional axis) the flow time the window
 // starts from. Every Table I phase, memory and list counters are reported.
-#include <sys/resource.h>
-
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -38,13 +36,6 @@ double core_fma_peak_gflops(Precision precision) {
   return peak_float;
 }
 
-/// Minor page faults of this process so far (first touches of fresh memory).
-long minor_faults() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return u.ru_minflt;
-}
-
 void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const std::vector<double>& flow_times,
                int window, const std::string& cache_dir, bool roofline, bool primed) {
   const long sequence = next_run_sequence();
@@ -63,7 +54,7 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
   int probes = 0;
   MachineWitness witness;  // wall-clock core and memory speed before each window (core_peaks.hpp)
   int witnesses = 0;
-  long faults = 0;  // minor page faults inside the last window
+  double faults = 0;  // minor page faults inside the last window
   for (auto _ : state) {
     state.PauseTiming();
     sim.restore(start.particles(), start.time(), start.steps_done(), start.lost());
@@ -82,10 +73,10 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
       ++witnesses;
       probe_sum += measure_fma_peak_double_gflops(1, 0.005), ++probes;
     }
-    const long faults_before = minor_faults();
+    const double faults_before = process_faults().minor;
     state.ResumeTiming();
     timed_window(sim, window, max_bytes);
-    faults = minor_faults() - faults_before;
+    faults = process_faults().minor - faults_before;
     if (roofline) {
       state.PauseTiming();
       probe_sum += measure_fma_peak_double_gflops(1, 0.005), ++probes;
@@ -147,7 +138,7 @@ void run_point(benchmark::State& state, RunConfig cfg, double flow_time, const s
   c["snapshot_time"] = start.time();  // at or just past the requested flow_time
   c["run_sequence"] = static_cast<double>(sequence);
   c["primed_steps"] = primed ? 1.0 : 0.0;
-  c["minor_faults_per_step"] = static_cast<double>(faults) / steps;
+  c["minor_faults_per_step"] = faults / steps;
 }
 
 }  // namespace
