@@ -535,6 +535,14 @@ def counters_reorder(data, out):
                          {"not reordered": {"reorder": 0}, "reordered": {"reorder": 1}})
 
 
+def counters_vl_force(data, out):
+    """Counts per particle-step by phase: CLL against VL_X (n_s = 7) at each N,
+    to split VL_X's shrinking force-phase saving into work and misses."""
+    return _counter_bars(data, out, "counters_vl_force",
+                         "Counts per particle-step: CLL and VL$_X$ ($n_s$ = 7) against N (B, SortX, reordered)",
+                         {"CLL": {"list": "cll"}, f"{LISTS['vlx']} $n_s$=7": {"list": "vlx"}})
+
+
 # ------------------------------------------------------------ ranks (mpi kind)
 LAYOUTS = {(2, 1): "2 ranks x 1 thread", (1, 2): "1 rank x 2 threads", (2, 2): "2 ranks x 2 threads",
            (4, 1): "4 ranks x 1 thread", (1, 4): "1 rank x 4 threads"}
@@ -627,7 +635,7 @@ def beyond_mpi(data, out):
 
 FIGURES = {f.__name__: f for f in (fig06, fig07, fig08, fig09, fig10, fig11, fig12, fig13,
                                    fig14, fig15, fig16, fig17, cellindex, beyond_threads, peers,
-                                   counters_lists, counters_reorder, beyond_mpi)}
+                                   counters_lists, counters_reorder, counters_vl_force, beyond_mpi)}
 
 PHASES = (("Neighbour List", "s_neighbour_list", "list"), ("Force Computation", "s_force", "force"),
           ("System Update", "s_update", "update"))

@@ -321,6 +321,34 @@ class ShippedExplanations(unittest.TestCase):
         counted = {e["id"] for e in self.entries if e["experiment"].startswith("counters_")}
         self.assertTrue({"vl_outgrows_2010_ll", "reorder_ll_resident", "gather_l1_resident"} <= counted)
 
+    def test_vl_force_entries_split_work_from_misses(self):
+        """counters_vl_force's three entries on synthetic force-phase counts
+        whose answers are known: VL_X saves 16 % of CLL's instructions at the
+        smallest N and 9.5 % at the largest (a fall of 6.5 pp: supported), its
+        D1 misses relative to CLL's do not grow (refuted), and CLL takes no
+        LL miss at all at the smallest N (the difference needs no division)."""
+        force = {  # (list, N): (instructions, D1 misses, LL misses) per particle-step
+            ("cll", 31239): (1000.0, 40.0, 0.0), ("vlx", 31239): (840.0, 30.0, 0.1),
+            ("cll", 300000): (1200.0, 50.0, 0.2), ("vlx", 300000): (1086.0, 37.5, 1.3)}
+        entries = []
+        for (lst, n), (ir, d1, ll) in force.items():
+            name = R.format_run_name("counters", {"particles": n, "gridder": "B", "cell_order": "sort_x", "reorder": 1,
+                                                  "list": lst, "list_steps": 7, "kgc": 0, "threads": 1,
+                                                  "cache_model": "this_machine"})
+            entries.append({"name": name, "run_name": name, "run_type": "iteration", "repetitions": 1,
+                            "repetition_index": 0, "iterations": 1, "real_time": 1.0, "time_unit": "s",
+                            "sphnl_round": 0, "n_particles": n, "window_steps": 7, "ir_force_per_particle_step": ir,
+                            "d1_misses_force_per_particle_step": d1, "ll_misses_force_per_particle_step": ll})
+        rows = rows_of({"context": {}, "benchmarks": entries}, "counters_vl_force")
+        got = {e["id"]: X.measure(e, rows, resamples=20) for e in self.entries if e["experiment"] == "counters_vl_force"}
+        self.assertEqual(sorted(got), ["vl_force_d1_misses_grow", "vl_force_ll_misses_grow", "vl_force_work_saving_shrinks"])
+        self.assertAlmostEqual(got["vl_force_work_saving_shrinks"]["value"], 9.5 - 16.0)
+        self.assertEqual(got["vl_force_work_saving_shrinks"]["verdict"], "supported")
+        self.assertAlmostEqual(got["vl_force_d1_misses_grow"]["value"], (37.5 / 50.0) / (30.0 / 40.0))
+        self.assertEqual(got["vl_force_d1_misses_grow"]["verdict"], "refuted")
+        self.assertAlmostEqual(got["vl_force_ll_misses_grow"]["value"], (1.3 - 0.2) - (0.1 - 0.0))
+        self.assertEqual(got["vl_force_ll_misses_grow"]["verdict"], "supported")
+
 
 if __name__ == "__main__":
     unittest.main()
