@@ -21,6 +21,7 @@ import hashlib
 import json
 import os
 import pathlib
+import queue
 import shutil
 import subprocess
 import time
@@ -173,9 +174,40 @@ def _run(cmd, log, env, cwd):
         raise CountersError(f"exit status {proc.returncode} of\n  {' '.join(cmd)}\nlast lines of {log}:\n  {tail}")
 
 
-def count_one(name, model, *, valgrind, size, work, env, no_aslr):
+def cpu_slots():
+    """A queue of the CPUs this process may run on, one per concurrent
+    valgrind job. Each job runs on a CPU of its own (cpu_prefix): under the
+    bench's OpenMP pinning (OMP_PROC_BIND=close) every one-thread process
+    binds itself to the first CPU it is allowed, so two jobs started alike
+    shared one core and each ran at half speed."""
+    slots = queue.Queue()
+    for cpu in sorted(os.sched_getaffinity(0)):
+        slots.put(cpu)
+    return slots
+
+
+def cpu_prefix(cpu):
+    """`taskset -c CPU` (util-linux) where it exists: the job's allowed CPUs,
+    set before the bench starts, so that OpenMP binds it there. The counts do
+    not depend on the CPU; the argument list valgrind sees is unchanged."""
+    taskset = shutil.which("taskset")
+    return [taskset, "-c", str(cpu)] if taskset and cpu is not None else []
+
+
+def count_one(name, model, *, valgrind, size, work, env, no_aslr, cpus=None):
     """(entry, bench context) of one configuration under callgrind, run in
-    `work` (which holds the links experiment.json, cache and bench)."""
+    `work` (which holds the links experiment.json, cache and bench), on a
+    CPU taken from the queue `cpus` for the run (cpu_slots)."""
+    cpu = cpus.get() if cpus is not None else None
+    try:
+        return _count_one(name, model, valgrind=valgrind, size=size, work=work, env=env,
+                          no_aslr=cpu_prefix(cpu) + no_aslr)
+    finally:
+        if cpu is not None:
+            cpus.put(cpu)
+
+
+def _count_one(name, model, *, valgrind, size, work, env, no_aslr):
     stem = _stem(name)
     cg_out, gb_out, log = (work / f"{stem}{s}" for s in (".out", ".json", ".log"))
     for old in V.dump_files(cg_out) + [cg_out, gb_out, log]:
@@ -269,7 +301,7 @@ def run(args, exp, out_path, label, env, progress=print):
         entries, context = {}, {}
         (work / "bench").symlink_to(pathlib.Path(args.counters_bench).resolve())
         common = dict(valgrind=shutil.which(args.valgrind), size=size, work=work, env=env,
-                      no_aslr=no_aslr_prefix())
+                      no_aslr=no_aslr_prefix(), cpus=cpu_slots())
         with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as pool:
             futures = {pool.submit(count_one, name, models[p["cache_model"]], **common): name
                        for name, p in zip(names, points)}

@@ -94,6 +94,37 @@ class CallgrindParsing(unittest.TestCase):
         self.assertGreater(fields["ir_force_per_particle_step"], fields["ir_update_per_particle_step"])
 
 
+class CpuSlots(unittest.TestCase):
+    def test_concurrent_jobs_run_on_different_cpus(self):
+        """Two valgrind jobs at once each get a CPU of their own (taskset -c),
+        taken from the allowed CPUs and given back when the job ends."""
+        import threading
+        allowed = sorted(os.sched_getaffinity(0))
+        if len(allowed) < 2 or not shutil.which("taskset"):
+            self.skipTest("needs two allowed CPUs and taskset")
+        seen, both_started = [], threading.Barrier(2, timeout=10)
+
+        def fake(name, model, *, no_aslr, **_):
+            seen.append(no_aslr)
+            both_started.wait()  # the two jobs hold their CPUs at the same time
+            return name, {}
+        saved, CNT._count_one = CNT._count_one, fake
+        try:
+            cpus = CNT.cpu_slots()
+            common = dict(valgrind="v", size="tiny", work=pathlib.Path("."), env={}, no_aslr=["setarch", "-R"], cpus=cpus)
+            threads = [threading.Thread(target=CNT.count_one, args=(n, None), kwargs=common) for n in ("a", "b")]
+            for t in threads:
+                t.start()
+            for t in threads:
+                t.join()
+        finally:
+            CNT._count_one = saved
+        self.assertEqual(len(seen), 2)
+        self.assertTrue(all(pre[0].endswith("taskset") and pre[1] == "-c" and pre[3:] == ["setarch", "-R"] for pre in seen))
+        self.assertEqual(sorted(int(pre[2]) for pre in seen), allowed[:2])
+        self.assertEqual(cpus.qsize(), len(allowed))  # every CPU given back
+
+
 class CacheModels(unittest.TestCase):
     def fake_sysfs(self, root, levels):
         for k, (level, kind, size, ways) in enumerate(levels):
