@@ -14,10 +14,12 @@
 // and nothing is reported.
 #include <malloc.h>
 
+#include <chrono>
 #include <cmath>
 #include <fstream>
 #include <map>
 #include <memory>
+#include <thread>
 #include <tuple>
 
 #include "bench_common.hpp"
@@ -46,7 +48,7 @@ const std::vector<std::pair<std::string, json>>& search_axes() {
   static const std::vector<std::pair<std::string, json>> axes = {
       {"particles", nullptr}, {"gridder", nullptr},          {"cell_order", nullptr}, {"reorder", nullptr},
       {"threads", nullptr},   {"impl", "sphnl"},             {"cloud", "lattice"},
-      {"memory_order", "generated"}, {"call", "warm"}, {"pages", "base"}};
+      {"memory_order", "generated"}, {"call", "warm"}, {"pages", "base"}, {"freed_memory", "as_found"}};
   return axes;
 }
 
@@ -296,6 +298,20 @@ void register_search_benchmarks(const json& sweep) {
     const std::string pages = axis_value(p, "pages").get<std::string>();
     if (pages != "base" && pages != "huge") throw std::invalid_argument("pages: '" + pages + "'; allowed: base, huge");
     so.huge_pages = pages == "huge";
+    // freed_memory (first calls): the memory a first call's pages come from.
+    // as_found: whatever the kernel holds free (the default, as before the
+    // axis). just_freed: an untimed call of the same size made and freed
+    // right before. idle_<s>s: the same, then s seconds idle before the timed
+    // call. On a virtual machine that reports free memory to its host
+    // (virtio free page reporting) the pages idle long enough are handed
+    // back to the host, and touching them again costs host faults that the
+    // guest's own fault counters do not see (docs/FINDINGS.md, "Where slow
+    // first calls go").
+    const std::string freed = axis_value(p, "freed_memory").get<std::string>();
+    const int idle_s = freed.rfind("idle_", 0) == 0 ? std::stoi(freed.substr(5)) : 0;
+    if (freed != "as_found" && !first)
+      throw std::invalid_argument("freed_memory: '" + freed + "' applies to first calls only (call: first); "
+                                  "a warm call reuses its own buffers");
     const std::string name = benchmark_name("search", p, axes);
     benchmark::RegisterBenchmark(name.c_str(), [=](benchmark::State& st) {
       guarded(name, [&] {
@@ -312,6 +328,7 @@ void register_search_benchmarks(const json& sweep) {
         CallResult r;
         FaultCount faults;
         const MachineWitness witness = measure_machine_witness(cfg.threads);  // untimed, just before the call
+        if (freed != "as_found") runner->call(true);  // untimed: its memory is what the timed call finds freed
         for (auto _ : st) {
           // call: first stands in for the first call of a fresh process: the
           // last call's objects freed, every free page the allocator holds
@@ -321,6 +338,11 @@ void register_search_benchmarks(const json& sweep) {
           if (first) {
             runner->release();
             malloc_trim(0);
+          }
+          if (idle_s > 0) {  // the freed pages left idle, the wait not timed
+            st.PauseTiming();
+            std::this_thread::sleep_for(std::chrono::seconds(idle_s));
+            st.ResumeTiming();
           }
           const FaultCount before = fault_count();
           r = runner->call(first);

@@ -25,7 +25,7 @@ FAMILY_KEYS = {
              "extra_loops", "thread_updates", "thread_split", "precision", "inner_order"],
     "cellindex": ["cell_order", "particles"],
     "search": ["particles", "gridder", "cell_order", "reorder", "threads",
-               "impl", "cloud", "memory_order", "call", "pages"],
+               "impl", "cloud", "memory_order", "call", "pages", "freed_memory"],
     # the step window under callgrind (the counters kind): the caches simulated
     "counters": ["particles", "gridder", "cell_order", "reorder", "list", "list_steps", "kgc",
                  "threads", "lattice", "h_coefficient", "flow_time", "window_start",
@@ -60,12 +60,13 @@ AXIS_DEFAULTS = {
     "step": _STEP_DEFAULTS,
     "counters": _STEP_DEFAULTS,  # cache_model has none: a counters sweep names it
     "cellindex": {},
-    "search": {"impl": "sphnl", "cloud": "lattice", "memory_order": "generated", "call": "warm", "pages": "base"},
+    "search": {"impl": "sphnl", "cloud": "lattice", "memory_order": "generated", "call": "warm", "pages": "base",
+               "freed_memory": "as_found"},
     "mpi": {"balance_by": "interactions"},  # not filled in on load: older runs cut by particles
 }
 # Axes filled in from AXIS_DEFAULTS when a name lacks them (lattice and h
 # coefficient stay absent in step rows, as the figures and claims expect).
-DEFAULTED_ON_LOAD = {"step": ("flow_time",), "counters": ("flow_time",), "search": ("impl", "cloud", "memory_order", "call", "pages")}
+DEFAULTED_ON_LOAD = {"step": ("flow_time",), "counters": ("flow_time",), "search": ("impl", "cloud", "memory_order", "call", "pages", "freed_memory")}
 # Axes a sweep must list: every axis of the family without a default.
 REQUIRED_AXES = {family: [k for k in keys if k not in AXIS_DEFAULTS[family]]
                  for family, keys in FAMILY_KEYS.items()}

@@ -110,7 +110,7 @@ TEST(ExperimentSchema, BenchmarkOnlyAxesAreTheOnesThatAreNotConfigKeys) {
   // counters kind's simulated caches: none of them is a run setting
   const std::vector<std::string> only = benchmark_only_axes();
   EXPECT_EQ(only, (std::vector<std::string>{"flow_time", "window_start", "impl", "cloud", "memory_order", "call", "pages",
-                                             "cache_model", "ranks"}));
+                                             "freed_memory", "cache_model", "ranks"}));
   const std::vector<std::string> keys = config_keys();
   for (const auto& axis : only) EXPECT_EQ(std::count(keys.begin(), keys.end(), axis), 0) << axis;
 }
@@ -134,6 +134,25 @@ TEST(ExperimentSchema, WrongTypesAndValues) {
   EXPECT_HAS(all_errors(with(kValidStep, R"("window_steps": {"tiny": 3)", R"("window_steps": {"tiny": 0)")), "window_steps.tiny: is 0; expected an integer >= 1");
   EXPECT_HAS(all_errors(with(kValidStep, R"("benchmark": "step")", R"("benchmark": "steps")")), "benchmark: is \"steps\"; expected one of step, counters, cellindex, search");
   EXPECT_HAS(all_errors(with(kValidStep, R"("tiny": {"particles")", R"("small": {"particles")")), "sweep: unknown size 'small'; allowed: tiny, default, full");
+}
+
+TEST(ExperimentSchema, FreedMemoryTakesNamedStatesAndIdleSeconds) {
+  // the search family's freed_memory: as_found, just_freed, idle_<s>s with s from 1 to 60
+  const std::string search = with(with(with(kValidStep, R"("benchmark": "step")", R"("benchmark": "search")"),
+                                        R"("list": ["cll"], "list_steps": [1], "kgc": [0], "threads": [1], "flow_time": [0.35]})",
+                                        R"("threads": [1], "call": ["first"], "freed_memory": ["as_found", "just_freed", "idle_1s", "idle_60s"]})"),
+                                   R"("metric": "s_per_step")", R"("metric": "s_call")");
+  const std::string tiny_and_default_cleaned = [&] {
+    std::string t = search;
+    for (int k = 0; k < 2; ++k)
+      t = with(t, R"("list": ["cll"], "list_steps": [1], "kgc": [0], "threads": [1]})", R"("threads": [1]})");
+    return t;
+  }();
+  EXPECT_EQ(all_errors(tiny_and_default_cleaned), "");
+  for (const char* bad : {"idle_0s", "idle_61s", "idle_05s", "idle_s", "idle_3", "idle_3.5s", "fresh"}) {
+    const std::string text = with(tiny_and_default_cleaned, "\"idle_60s\"", std::string("\"") + bad + "\"");
+    EXPECT_HAS(all_errors(text), std::string("sweep.full.freed_memory: value \"") + bad + "\" is not allowed; expected \"as_found\"");
+  }
 }
 
 TEST(ExperimentSchema, ProtocolAndClaims) {

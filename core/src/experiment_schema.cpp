@@ -42,6 +42,20 @@ std::string positive_integer(const json& v) {
   return v.is_number_integer() && v.get<long>() >= 1 ? "" : "an integer >= 1";
 }
 
+/// A first call's free memory (the search family's `freed_memory`): as_found,
+/// just_freed, or idle_<s>s with 1 <= s <= 60.
+std::string freed_memory_value(const json& v) {
+  const char* want = "\"as_found\", \"just_freed\" or \"idle_<s>s\" (s an integer from 1 to 60)";
+  if (!v.is_string()) return want;
+  const std::string s = v.get<std::string>();
+  if (s == "as_found" || s == "just_freed") return "";
+  if (s.size() < 7 || s.rfind("idle_", 0) != 0 || s.back() != 's') return want;
+  const std::string digits = s.substr(5, s.size() - 6);
+  if (digits.empty() || digits.size() > 2 || digits.find_first_not_of("0123456789") != std::string::npos) return want;
+  const int seconds = std::stoi(digits);
+  return seconds >= 1 && seconds <= 60 && digits[0] != '0' ? "" : want;
+}
+
 std::string cache_model_name(const json& v) {
   return v.is_string() && (v == "this_machine" || v == "nehalem_2010") ? "" : "\"this_machine\" or \"nehalem_2010\"";
 }
@@ -90,6 +104,10 @@ const std::vector<Axis>& axes() {
       {"call", {"search"}, {}, one_of({"warm", "first"})},
       // the lists' pages (a sweep without it means base, as before the axis)
       {"pages", {"search"}, {}, one_of({"base", "huge"})},
+      // what memory a first call finds (a sweep without it means as_found):
+      // just freed by an untimed call of the same size, or left idle that
+      // many seconds after it was freed
+      {"freed_memory", {"search"}, {}, freed_memory_value},
       // the caches valgrind simulates for the counters kind (harness/valgrind.py)
       {"cache_model", {"counters"}, {"counters"}, cache_model_name},
       // processes of a distributed `sphnl run` under mpirun (the mpi kind,
