@@ -188,8 +188,13 @@ def cpu_slots():
 
 def cpu_prefix(cpu):
     """`taskset -c CPU` (util-linux) where it exists: the job's allowed CPUs,
-    set before the bench starts, so that OpenMP binds it there. The counts do
-    not depend on the CPU; the argument list valgrind sees is unchanged."""
+    set before the bench starts, so that OpenMP binds it there. The argument
+    list valgrind sees is unchanged, but the counts are not quite: what the
+    process learns of its CPUs at start (before the window) leaves the heap
+    in another state, so a window's instructions differ by about 1e-3 with
+    and without taskset and by about 1e-6 between two CPUs (measured on a
+    1 500-particle window). One job at a time therefore runs without it, as
+    before, and repeats to the last instruction."""
     taskset = shutil.which("taskset")
     return [taskset, "-c", str(cpu)] if taskset and cpu is not None else []
 
@@ -301,7 +306,7 @@ def run(args, exp, out_path, label, env, progress=print):
         entries, context = {}, {}
         (work / "bench").symlink_to(pathlib.Path(args.counters_bench).resolve())
         common = dict(valgrind=shutil.which(args.valgrind), size=size, work=work, env=env,
-                      no_aslr=no_aslr_prefix(), cpus=cpu_slots())
+                      no_aslr=no_aslr_prefix(), cpus=cpu_slots() if jobs > 1 else None)
         with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as pool:
             futures = {pool.submit(count_one, name, models[p["cache_model"]], **common): name
                        for name, p in zip(names, points)}
@@ -320,7 +325,11 @@ def run(args, exp, out_path, label, env, progress=print):
         record = {"round": 0, "started": started, "ended": M.now(), "order": names,
                   "warmups_discarded": len(names), "under_load": False,
                   "deterministic": "callgrind counts do not depend on the machine's load",
-                  "git_revision": M.git_revision(), "bench": M.relative_to_repo(args.counters_bench),
+                  # the revision the part started from (machine.json), not
+                  # the checkout's at the end: commits made during an hour of
+                  # valgrind do not change what was counted
+                  "git_revision": getattr(args, "part", {}).get("git_revision") or M.git_revision(),
+                  "bench": M.relative_to_repo(args.counters_bench),
                   "bench_sha256": M.sha256(args.counters_bench),
                   "valgrind": context["sphnl_counters_valgrind"]}
         doc = {"context": context, "benchmarks": [entries[n] for n in names], "sphnl_rounds": [record],

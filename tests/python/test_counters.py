@@ -177,7 +177,7 @@ class CountsRepeat(unittest.TestCase):
             exp = tiny_experiment(tmp / "repo")
             args = types.SimpleNamespace(size="tiny", valgrind="valgrind", counters_bench=bench, counters_jobs=1,
                                          cache_dir=tmp / "cache", repo=tmp / "repo",
-                                         step_seconds=lambda p: 1e-3)
+                                         step_seconds=lambda p: 1e-3, part={"git_revision": "0123456789ab"})
             docs = []
             # a 40-byte variable moved the stack of the bench and its D1
             # misses by 0.25 % before valgrind_env fixed the environment
@@ -208,6 +208,7 @@ class CountsRepeat(unittest.TestCase):
         self.assertGreater(a[0]["ir_phase_coverage"], 0.95)
         self.assertEqual(a[0]["ll_bytes"], 8 * 1024 * 1024)
         self.assertEqual(docs[0]["sphnl_protocol"]["rounds"], 1)
+        self.assertEqual(docs[0]["sphnl_rounds"][0]["git_revision"], "0123456789ab")  # the part's, not HEAD's
         rows = R.entry_rows(docs[0], "counters_test")  # the results loader reads it
         self.assertEqual(rows[0]["cache_model"], "nehalem_2010")
 
