@@ -223,7 +223,14 @@ def _count_one(name, model, *, valgrind, size, work, env, no_aslr):
                                         cache=model, dump_per_window=True)
     start = time.monotonic()
     _run(cmd, log, valgrind_env(env), work)
-    seconds = time.monotonic() - start
+    return collect(name, model, work, time.monotonic() - start)
+
+
+def collect(name, model, work, seconds):
+    """(entry, bench context) from the files a finished valgrind run of
+    `name` left in `work`: its two window dumps and the bench's JSON."""
+    stem = _stem(name)
+    cg_out, gb_out, log = (work / f"{stem}{s}" for s in (".out", ".json", ".log"))
     dumps = V.dump_files(cg_out)
     if len(dumps) != WINDOWS_PER_RUN:
         raise CountersError(f"{name}: callgrind wrote {len(dumps)} window dumps, expected {WINDOWS_PER_RUN} "
@@ -237,6 +244,48 @@ def _count_one(name, model, *, valgrind, size, work, env, no_aslr):
         raise CountersError(f"{name}: the bench did not report exactly one successful entry "
                             f"({found[0].get('error_message') if found else 'none'}); log: {log}")
     return entry(name, found[0], profile, model, seconds), doc.get("context", {})
+
+
+# A configuration counted in a run that did not finish is kept in the work
+# folder as <stem>.done.json, with what makes its counts: the next run of the
+# same experiment reuses it instead of counting it again (a 300 000-particle
+# window takes over an hour of valgrind).
+DONE_SUFFIX = ".done.json"
+
+
+def done_key(name, model, size, window_steps, bench_sha256):
+    """What a kept count must match to be reused: the configuration, the size
+    and window, the simulated caches and the bench binary."""
+    return {"name": name, "size": size, "window_steps": window_steps, "cache": model.options(),
+            "bench_sha256": bench_sha256}
+
+
+def keep_done(work, key, entry_, context):
+    write_atomic(work / (_stem(key["name"]) + DONE_SUFFIX),
+                 json.dumps({"key": key, "entry": entry_, "context": context}, indent=1) + "\n")
+
+
+def load_done(work, key):
+    """(entry, context) of a kept count of `key`, or None (none kept, or kept
+    for another binary, size, window or cache)."""
+    try:
+        kept = json.loads((work / (_stem(key["name"]) + DONE_SUFFIX)).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return (kept["entry"], kept["context"]) if kept.get("key") == key else None
+
+
+def prepare_work(work):
+    """The work folder of a run: kept counts (DONE_SUFFIX) stay, everything
+    else of an earlier run goes."""
+    work.mkdir(parents=True, exist_ok=True)
+    for f in work.iterdir():
+        if f.name.endswith(DONE_SUFFIX):
+            continue
+        if f.is_dir() and not f.is_symlink():
+            shutil.rmtree(f)
+        else:
+            f.unlink()
 
 
 def valgrind_version(valgrind):
@@ -278,7 +327,9 @@ def estimate_seconds(exp, size, step_seconds):
 
 def run(args, exp, out_path, label, env, progress=print):
     """Count every configuration of `exp` into out_path (written only when
-    complete). Returns the seconds it took."""
+    complete). A run that stops keeps the configurations it counted in its
+    work folder, and the next run with the same bench reuses them (recorded
+    as kept_from_earlier_run). Returns the seconds it took."""
     size = args.size
     try:
         points = check(exp, size, args)
@@ -292,30 +343,41 @@ def run(args, exp, out_path, label, env, progress=print):
              f"per window (model estimate {estimate_seconds(exp, size, args.step_seconds) / jobs / 60:.0f} min)")
     exp_file = (pathlib.Path(args.repo) / "experiments" / f"{exp['id']}.json").resolve()
     work = out_path.with_name(f".{exp['id']}.counters")
-    shutil.rmtree(work, ignore_errors=True)
-    work.mkdir(parents=True)
+    prepare_work(work)
     pathlib.Path(args.cache_dir).mkdir(parents=True, exist_ok=True)
     (work / "experiment.json").symlink_to(exp_file)
     (work / "cache").symlink_to(pathlib.Path(args.cache_dir).resolve())
     started, start = M.now(), time.monotonic()
+    entries, context = {}, {}
     try:
         # Snapshots first, natively: the same bench, every configuration once, no valgrind.
         progress(f"  {exp['id']}: developing or loading the snapshots with a native run of {args.counters_bench}")
         _run(bench_command(pathlib.Path(args.counters_bench).resolve(), "experiment.json", size, "cache",
                            "native.json", warmup=False), work / "native.log", env, work)
-        entries, context = {}, {}
         (work / "bench").symlink_to(pathlib.Path(args.counters_bench).resolve())
         common = dict(valgrind=shutil.which(args.valgrind), size=size, work=work, env=env,
                       no_aslr=no_aslr_prefix(), cpus=cpu_slots() if jobs > 1 else None)
+        bench_sha = M.sha256(args.counters_bench)
+        keys = {name: done_key(name, models[p["cache_model"]], size, exp["window_steps"][size], bench_sha)
+                for name, p in zip(names, points)}
+        for name in names:
+            kept = load_done(work, keys[name])
+            if kept:
+                entries[name], context = kept
+        if entries:
+            progress(f"  {exp['id']}: {len(entries)} of {len(names)} configurations kept from an earlier "
+                     f"run that did not finish (same bench, size, window and caches); counting the rest")
+        kept_names = sorted(entries)
+        todo = [(name, p) for name, p in zip(names, points) if name not in entries]
         with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as pool:
-            futures = {pool.submit(count_one, name, models[p["cache_model"]], **common): name
-                       for name, p in zip(names, points)}
+            futures = {pool.submit(count_one, name, models[p["cache_model"]], **common): name for name, p in todo}
             for done, future in enumerate(concurrent.futures.as_completed(futures), 1):
                 name = futures[future]
                 entries[name], context = future.result()
+                keep_done(work, keys[name], entries[name], context)
                 elapsed = time.monotonic() - start
-                progress(f"  {exp['id']}: {done}/{len(names)} counted ({name}), elapsed "
-                         f"{elapsed / 60:.1f} min, ETA {elapsed / done * (len(names) - done) / 60:.1f} min")
+                progress(f"  {exp['id']}: {done}/{len(todo)} counted ({name}), elapsed "
+                         f"{elapsed / 60:.1f} min, ETA {elapsed / done * (len(todo) - done) / 60:.1f} min")
         seconds = time.monotonic() - start
         context = dict(context, sphnl_counters_valgrind=valgrind_version(args.valgrind) or "unknown",
                        sphnl_counters_tool="callgrind --cache-sim=yes, counting inside "
@@ -324,6 +386,9 @@ def run(args, exp, out_path, label, env, progress=print):
             context[f"sphnl_cache_model_{model.name}"] = f"{' '.join(model.options())} ({model.note})"
         record = {"round": 0, "started": started, "ended": M.now(), "order": names,
                   "warmups_discarded": len(names), "under_load": False,
+                  # configurations counted by an earlier run of the same
+                  # bench that did not finish (DONE_SUFFIX), reused
+                  "kept_from_earlier_run": kept_names,
                   "deterministic": "callgrind counts do not depend on the machine's load",
                   # the revision the part started from (machine.json), not
                   # the checkout's at the end: commits made during an hour of
@@ -341,7 +406,10 @@ def run(args, exp, out_path, label, env, progress=print):
         if missing:
             raise CountersError(f"{exp['id']}: {len(missing)} configurations were not counted, e.g. {missing[0]}")
         write_atomic(out_path, json.dumps(doc, indent=2) + "\n")
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
+    except BaseException:
+        progress(f"  {exp['id']}: {len(entries)} of {len(names)} configurations counted are kept in {work} "
+                 "for the next run of this experiment")
+        raise
+    shutil.rmtree(work, ignore_errors=True)
     progress(f"  {exp['id']}: {len(names)} configurations counted in {seconds / 60:.1f} min -> {out_path}")
     return seconds

@@ -125,6 +125,64 @@ class CpuSlots(unittest.TestCase):
         self.assertEqual(cpus.qsize(), len(allowed))  # every CPU given back
 
 
+class KeptCounts(unittest.TestCase):
+    def test_a_run_that_stops_keeps_its_counts_for_the_next(self):
+        """Three configurations; the first run counts two and fails on the
+        third: the next run of the same bench counts only the third and
+        records the two it kept; another bench binary counts all three."""
+        calls, fail_on = [], {"n": 3000}
+
+        def fake_count(name, model, **_):
+            calls.append(name)
+            if f"particles:{fail_on['n']}/" in name:
+                raise CNT.CountersError("stopped")
+            n = int(name.split("particles:")[1].split("/")[0])
+            e = {"name": name, "run_name": name, "run_type": "iteration", "repetitions": 1, "repetition_index": 0,
+                 "iterations": 1, "real_time": 1.0, "time_unit": "s", "sphnl_round": 0, "n_particles": n,
+                 "window_steps": 1, "ir_per_particle_step": float(n)}
+            return e, {"host_name": "x"}
+        with tempfile.TemporaryDirectory() as tmp:
+            tmp = pathlib.Path(tmp)
+            exp = tiny_experiment(tmp / "repo")
+            for s in R.SIZES:
+                exp["sweep"][s]["particles"] = [1500, 2000, 3000]
+            bench = tmp / "bench"
+            bench.write_text("#!/bin/sh\n")
+            bench.chmod(0o755)
+            args = types.SimpleNamespace(size="tiny", valgrind=shutil.which("true") and "true", counters_bench=bench,
+                                         counters_jobs=1, cache_dir=tmp / "cache", repo=tmp / "repo",
+                                         step_seconds=lambda p: 1e-3, part={"git_revision": "0123456789ab"})
+            out = tmp / "run" / "counters_test.json"
+            out.parent.mkdir()
+            saved = CNT.count_one, CNT._run
+            CNT.count_one, CNT._run = fake_count, lambda *a, **k: None
+            try:
+                with self.assertRaisesRegex(CNT.CountersError, "stopped"):
+                    CNT.run(args, exp, out, "[t]", {}, progress=lambda m: None)
+                self.assertFalse(out.exists())
+                work = out.with_name(".counters_test.counters")
+                self.assertEqual(len(list(work.glob("*" + CNT.DONE_SUFFIX))), 2)
+                calls.clear()
+                fail_on["n"] = -1
+                CNT.run(args, exp, out, "[t]", {}, progress=lambda m: None)
+                self.assertEqual([c.split("particles:")[1].split("/")[0] for c in calls], ["3000"])
+                doc = json.loads(out.read_text())
+                self.assertEqual([b["n_particles"] for b in doc["benchmarks"]], [1500, 2000, 3000])
+                self.assertEqual(len(doc["sphnl_rounds"][0]["kept_from_earlier_run"]), 2)
+                self.assertFalse(work.exists())  # a finished run leaves no work folder
+                # kept counts of another bench binary are not reused
+                fail_on["n"] = 3000
+                with self.assertRaises(CNT.CountersError):
+                    CNT.run(args, exp, out, "[t]", {}, progress=lambda m: None)
+                bench.write_text("#!/bin/sh\n# rebuilt\n")
+                calls.clear()
+                fail_on["n"] = -1
+                CNT.run(args, exp, out, "[t]", {}, progress=lambda m: None)
+                self.assertEqual(len(calls), 3)
+            finally:
+                CNT.count_one, CNT._run = saved
+
+
 class CacheModels(unittest.TestCase):
     def fake_sysfs(self, root, levels):
         for k, (level, kind, size, ways) in enumerate(levels):
