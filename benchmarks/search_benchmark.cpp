@@ -26,6 +26,7 @@
 #include "bench_guard.hpp"
 #include "peers/clouds.hpp"
 #include "roofline/core_peaks.hpp"
+#include "sphnl/experiment_schema.hpp"
 #include "sphnl/neighbours/neighbour_search.hpp"
 #include "sphnl/neighbours/pair_checksum.hpp"
 #include "sphnl/search.hpp"
@@ -308,7 +309,7 @@ void register_search_benchmarks(const json& sweep) {
     // guest's own fault counters do not see (docs/FINDINGS.md, "Where slow
     // first calls go").
     const std::string freed = axis_value(p, "freed_memory").get<std::string>();
-    const int idle_s = freed.rfind("idle_", 0) == 0 ? std::stoi(freed.substr(5)) : 0;
+    const int idle_s = freed_memory_idle_seconds(freed);  // validated with the file: >= 0
     if (freed != "as_found" && !first)
       throw std::invalid_argument("freed_memory: '" + freed + "' applies to first calls only (call: first); "
                                   "a warm call reuses its own buffers");

@@ -155,6 +155,17 @@ TEST(ExperimentSchema, FreedMemoryTakesNamedStatesAndIdleSeconds) {
   }
 }
 
+TEST(ExperimentSchema, FreedMemoryIdleSecondsIsTheOneParserOfTheAxis) {
+  // what the bench waits, from the value the schema accepted
+  EXPECT_EQ(freed_memory_idle_seconds("as_found"), 0);
+  EXPECT_EQ(freed_memory_idle_seconds("just_freed"), 0);
+  EXPECT_EQ(freed_memory_idle_seconds("idle_1s"), 1);
+  EXPECT_EQ(freed_memory_idle_seconds("idle_12s"), 12);
+  EXPECT_EQ(freed_memory_idle_seconds("idle_60s"), 60);
+  for (const char* bad : {"idle_0s", "idle_61s", "idle_05s", "idle_s", "idle_3", "idle_3.5s", "idle_123s", "fresh", ""})
+    EXPECT_EQ(freed_memory_idle_seconds(bad), -1) << bad;
+}
+
 TEST(ExperimentSchema, ProtocolAndClaims) {
   EXPECT_HAS(all_errors(with(kValidStep, R"("min_rounds": 1)", R"("min_round": 1)")), "protocol.tiny: unknown key 'min_round'; allowed: min_rounds, max_rounds, reps_per_round");
   EXPECT_HAS(all_errors(with(kValidStep, R"("budget_s": 60)", R"("budget_s": -1)")), "protocol.full.budget_s: is -1; expected a number > 0");

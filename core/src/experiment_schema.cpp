@@ -45,15 +45,9 @@ std::string positive_integer(const json& v) {
 /// A first call's free memory (the search family's `freed_memory`): as_found,
 /// just_freed, or idle_<s>s with 1 <= s <= 60.
 std::string freed_memory_value(const json& v) {
-  const char* want = "\"as_found\", \"just_freed\" or \"idle_<s>s\" (s an integer from 1 to 60)";
-  if (!v.is_string()) return want;
-  const std::string s = v.get<std::string>();
-  if (s == "as_found" || s == "just_freed") return "";
-  if (s.size() < 7 || s.rfind("idle_", 0) != 0 || s.back() != 's') return want;
-  const std::string digits = s.substr(5, s.size() - 6);
-  if (digits.empty() || digits.size() > 2 || digits.find_first_not_of("0123456789") != std::string::npos) return want;
-  const int seconds = std::stoi(digits);
-  return seconds >= 1 && seconds <= 60 && digits[0] != '0' ? "" : want;
+  return v.is_string() && freed_memory_idle_seconds(v.get<std::string>()) >= 0
+             ? ""
+             : "\"as_found\", \"just_freed\" or \"idle_<s>s\" (s an integer from 1 to 60)";
 }
 
 std::string cache_model_name(const json& v) {
@@ -348,6 +342,15 @@ const std::vector<std::string>& benchmark_only_axes() {
     return v;
   }();
   return names;
+}
+
+int freed_memory_idle_seconds(const std::string& value) {
+  if (value == "as_found" || value == "just_freed") return 0;
+  if (value.size() < 7 || value.rfind("idle_", 0) != 0 || value.back() != 's') return -1;
+  const std::string digits = value.substr(5, value.size() - 6);
+  if (digits.size() > 2 || digits[0] == '0' || digits.find_first_not_of("0123456789") != std::string::npos) return -1;
+  const int seconds = std::stoi(digits);
+  return seconds <= 60 ? seconds : -1;
 }
 
 json load_experiment(const std::string& path) {

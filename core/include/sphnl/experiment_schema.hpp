@@ -28,4 +28,9 @@ nlohmann::json load_experiment(const std::string& path);
 /// sweep point before the rest goes to config_from_json.
 const std::vector<std::string>& benchmark_only_axes();
 
+/// The seconds of idle a value of the search family's `freed_memory` axis
+/// asks for: 0 for "as_found" and "just_freed", s for "idle_<s>s" (s an
+/// integer from 1 to 60 without a leading zero); -1 for any other value.
+int freed_memory_idle_seconds(const std::string& value);
+
 }  // namespace sphnl
