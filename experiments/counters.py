@@ -199,25 +199,26 @@ def cpu_prefix(cpu):
     return [taskset, "-c", str(cpu)] if taskset and cpu is not None else []
 
 
-def count_one(name, model, *, valgrind, size, work, env, no_aslr, cpus=None):
+def count_one(name, model, *, valgrind, size, work, env, prefix, cpus=None):
     """(entry, bench context) of one configuration under callgrind, run in
-    `work` (which holds the links experiment.json, cache and bench), on a
-    CPU taken from the queue `cpus` for the run (cpu_slots)."""
+    `work` (which holds the links experiment.json, cache and bench), started
+    through `prefix` (no_aslr_prefix) on a CPU taken from the queue `cpus`
+    for the run (cpu_slots)."""
     cpu = cpus.get() if cpus is not None else None
     try:
         return _count_one(name, model, valgrind=valgrind, size=size, work=work, env=env,
-                          no_aslr=cpu_prefix(cpu) + no_aslr)
+                          prefix=cpu_prefix(cpu) + prefix)
     finally:
         if cpu is not None:
             cpus.put(cpu)
 
 
-def _count_one(name, model, *, valgrind, size, work, env, no_aslr):
+def _count_one(name, model, *, valgrind, size, work, env, prefix):
     stem = _stem(name)
     cg_out, gb_out, log = (work / f"{stem}{s}" for s in (".out", ".json", ".log"))
     for old in V.dump_files(cg_out) + [cg_out, gb_out, log]:
         old.unlink(missing_ok=True)
-    cmd = no_aslr + V.callgrind_command(valgrind, f"{stem}.out",
+    cmd = prefix + V.callgrind_command(valgrind, f"{stem}.out",
                                         bench_command("./bench", "experiment.json", size, "cache",
                                                       f"{stem}.json", name),
                                         cache=model, dump_per_window=True)
@@ -356,7 +357,7 @@ def run(args, exp, out_path, label, env, progress=print):
                            "native.json", warmup=False), work / "native.log", env, work)
         (work / "bench").symlink_to(pathlib.Path(args.counters_bench).resolve())
         common = dict(valgrind=shutil.which(args.valgrind), size=size, work=work, env=env,
-                      no_aslr=no_aslr_prefix(), cpus=cpu_slots() if jobs > 1 else None)
+                      prefix=no_aslr_prefix(), cpus=cpu_slots() if jobs > 1 else None)
         bench_sha = M.sha256(args.counters_bench)
         keys = {name: done_key(name, models[p["cache_model"]], size, exp["window_steps"][size], bench_sha)
                 for name, p in zip(names, points)}
@@ -395,7 +396,7 @@ def run(args, exp, out_path, label, env, progress=print):
                   # valgrind do not change what was counted
                   "git_revision": getattr(args, "part", {}).get("git_revision") or M.git_revision(),
                   "bench": M.relative_to_repo(args.counters_bench),
-                  "bench_sha256": M.sha256(args.counters_bench),
+                  "bench_sha256": bench_sha,
                   "valgrind": context["sphnl_counters_valgrind"]}
         doc = {"context": context, "benchmarks": [entries[n] for n in names], "sphnl_rounds": [record],
                "sphnl_protocol": {"rounds": 1, "reps_per_round": 1, "min_rounds": 1, "max_rounds": 1,

@@ -104,14 +104,14 @@ class CpuSlots(unittest.TestCase):
             self.skipTest("needs two allowed CPUs and taskset")
         seen, both_started = [], threading.Barrier(2, timeout=10)
 
-        def fake(name, model, *, no_aslr, **_):
-            seen.append(no_aslr)
+        def fake(name, model, *, prefix, **_):
+            seen.append(prefix)
             both_started.wait()  # the two jobs hold their CPUs at the same time
             return name, {}
         saved, CNT._count_one = CNT._count_one, fake
         try:
             cpus = CNT.cpu_slots()
-            common = dict(valgrind="v", size="tiny", work=pathlib.Path("."), env={}, no_aslr=["setarch", "-R"], cpus=cpus)
+            common = dict(valgrind="v", size="tiny", work=pathlib.Path("."), env={}, prefix=["setarch", "-R"], cpus=cpus)
             threads = [threading.Thread(target=CNT.count_one, args=(n, None), kwargs=common) for n in ("a", "b")]
             for t in threads:
                 t.start()
