@@ -463,6 +463,89 @@ def _peer_table(med):
     return "\n".join(lines)
 
 
+def _first_call_table(tab, n):
+    """{(state, "ratio"|impl, config): value} at N = n: sphnl / nanoflann
+    entries per second, and each implementation's seconds per first call in
+    each idle state over its just-freed call, config = (cloud, order, threads)."""
+    m = tab[(tab["particles"] == n) & (tab["call"] == "first")]
+    m = m.set_index(["impl", "freed_memory", "cloud", "memory_order", "threads"])
+    out = {}
+    for (impl, state, *config) in m.index:
+        config = tuple(config)
+        if impl == "sphnl" and ("nanoflann", state, *config) in m.index:
+            out[(state, "ratio", config)] = (m.loc[(impl, state, *config), "entries_per_s"]
+                                             / m.loc[("nanoflann", state, *config), "entries_per_s"])
+        if state != "just_freed" and (impl, "just_freed", *config) in m.index:
+            out[(state, impl, config)] = (m.loc[(impl, state, *config), "s_call"]
+                                          / m.loc[(impl, "just_freed", *config), "s_call"])
+    return out
+
+
+def _freed_order(state):
+    """Just freed first, then the idle states by their seconds."""
+    return (0, 0) if state == "just_freed" else (1, int(state[5:-1])) if state.startswith("idle_") else (2, 0)
+
+
+def _freed_label(state):
+    return "just freed" if state == "just_freed" else f"idle {state[5:-1]} s" if state.startswith("idle_") else state
+
+
+def peers_first_call(data, out):
+    """Beyond the paper: first calls of sphnl and nanoflann with the memory
+    they find controlled (just freed, or idle long enough for this VM to hand
+    it to its host): sphnl over nanoflann per configuration, and what the
+    idle memory costs each implementation."""
+    med = _med(data, family="search", call="first")
+    if "freed_memory" not in med.point or not set(IMPLS) <= set(med.point["impl"]):
+        raise NoData("needs both implementations (impl: sphnl and nanoflann) and a freed_memory axis")
+    n = int(med.point["particles"].max())
+    keys = sorted(_first_call_table(med.point, n), key=str)
+    if not keys:
+        raise NoData(f"no first call measured with both implementations at N = {format_n(n)}")
+
+    def values(tab):
+        got = _first_call_table(tab, n)
+        return np.array([got.get(k, np.nan) for k in keys], float)
+    point, reps = med.boot.evaluate(values)
+    lo, hi = S.intervals(reps, med.boot.level)
+    est = {k: (v, a, z) for k, v, a, z in zip(keys, point, lo, hi)}
+    configs = sorted({k[2] for k in keys})
+    labels = [f"{cloud}\n{order}\n{th} thr." for cloud, order, th in configs]
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.6))
+    panels = ((axes[0], "ratio", "sphnl / nanoflann, entries per second",
+               sorted({k[0] for k in keys if k[1] == "ratio"}, key=_freed_order)),
+              (axes[1], None, "seconds of a first call, idle over just freed", None))
+    for ax, what, ylabel, states in panels:
+        series = ([(st, "ratio") for st in states] if what == "ratio" else
+                  sorted({(k[0], k[1]) for k in keys if k[1] != "ratio"}, key=lambda k: (_freed_order(k[0]), k[1])))
+        width = 0.8 / max(1, len(series))
+        for j, (state, kind) in enumerate(series):
+            ys, yl, yh = (np.array([est.get((state, kind, c), (np.nan,) * 3)[i] for c in configs]) for i in range(3))
+            x = np.arange(len(configs)) + (j - (len(series) - 1) / 2) * width
+            label = _freed_label(state) if kind == "ratio" else f"{kind}, {_freed_label(state)}"
+            ax.bar(x, ys, width, label=label, alpha=0.85)
+            ax.errorbar(x, ys, yerr=[np.clip(ys - yl, 0, None), np.clip(yh - ys, 0, None)], fmt="none",
+                        ecolor="0.2", capsize=3)
+        if what == "ratio":
+            ax.axhline(5, color="0.3", lw=0.8, ls="--", label="target 5x")
+        else:
+            ax.axhline(1, color="0.3", lw=0.8)
+        ax.set_xticks(range(len(configs)), labels, fontsize=8)
+        ax.set(ylabel=ylabel)
+        ax.set_ylim(bottom=0)
+        ax.legend()
+    fig.suptitle(f"Beyond the paper: first calls, memory just freed or idle, N = {format_n(n)}")
+    _footnote(fig, "error bars")
+    _save(fig, out, "peers_first_call")
+    parts = []
+    for state in sorted({k[0] for k in keys if k[1] == "ratio"}, key=_freed_order):
+        ratios = [(est[(state, "ratio", c)], c) for c in configs if (state, "ratio", c) in est]
+        (v, a, z), c = min(ratios, key=lambda r: r[0][0])
+        parts.append(f"{_freed_label(state)} {v:.3g}x [{a:.3g}, {z:.3g}] ({c[0]}, {c[1]}, {c[2]} thr.)")
+    return (f"At N = {format_n(n)}, the smallest sphnl / nanoflann ratio of entries per second on a first call, "
+            f"by the memory it found [95 % interval]: " + "; ".join(parts) + ".")
+
+
 # ------------------------------------------------------ counters (valgrind)
 COUNTER_PHASES = (("neighbour_list", "neighbour list", "///"), ("force", "force", None),
                   ("update", "update", ".."))
@@ -634,7 +717,7 @@ def beyond_mpi(data, out):
 
 
 FIGURES = {f.__name__: f for f in (fig06, fig07, fig08, fig09, fig10, fig11, fig12, fig13,
-                                   fig14, fig15, fig16, fig17, cellindex, beyond_threads, peers,
+                                   fig14, fig15, fig16, fig17, cellindex, beyond_threads, peers, peers_first_call,
                                    counters_lists, counters_reorder, counters_vl_force, beyond_mpi)}
 
 PHASES = (("Neighbour List", "s_neighbour_list", "list"), ("Force Computation", "s_force", "force"),

@@ -772,6 +772,35 @@ class TestFiguresAndReport(TempDirCase):
                 self.assertLessEqual(value, hi)
                 self.assertLess(hi / lo, 1.1, line)
 
+    def test_peers_first_call_figure_names_the_smallest_ratio_per_memory_state(self):
+        # Synthetic first calls: sphnl 8x nanoflann just freed, 3x (lattice) or
+        # 6x (random) idle; idle memory costs sphnl 2x or 1.3x, nanoflann 1.1x.
+        rng = np.random.default_rng(2)
+        rows = []
+        for rnd, rep, impl, th, cloud, state in itertools.product(
+                range(3), range(3), ("sphnl", "nanoflann"), (1, 2), ("lattice", "random"), ("just_freed", "idle_3s")):
+            seconds = 1.0 if impl == "nanoflann" else 0.125
+            if state == "idle_3s":
+                seconds *= 1.1 if impl == "nanoflann" else (1.1 * 8 / 3 if cloud == "lattice" else 1.1 * 8 / 6)
+            seconds *= 1 + 0.01 * rng.standard_normal()
+            rows.append(dict(experiment="peers_first_call", family="search", particles=150000, threads=th,
+                             impl=impl, cloud=cloud, memory_order="generated", call="first", freed_memory=state,
+                             entries_per_s=1e7 / seconds, s_call=seconds, repetition_index=rep, round=rnd,
+                             run_name=f"search/{impl}/{cloud}/{th}/{state}", error_occurred=False))
+        sentence = F.peers_first_call(pd.DataFrame(rows), self.tmp)
+        self.assertTrue((self.tmp / "peers_first_call.png").exists())
+        self.assertTrue((self.tmp / "peers_first_call.svg").exists())
+        found = re.findall(r"(just freed|idle 3 s) ([\d.]+)x \[([\d.]+), ([\d.]+)\] \((\w+),", sentence)
+        self.assertEqual([f[0] for f in found], ["just freed", "idle 3 s"], sentence)
+        self.assertLess(abs(float(found[0][1]) / 8 - 1), 0.03, sentence)
+        self.assertLess(abs(float(found[1][1]) / 3 - 1), 0.03, sentence)
+        self.assertEqual(found[1][4], "lattice", sentence)
+        for _, value, lo, hi, _ in found:
+            self.assertLessEqual(float(lo), float(value))
+            self.assertLessEqual(float(value), float(hi))
+        with self.assertRaises(F.NoData):  # the peers experiment's first calls have no freed_memory axis
+            F.peers_first_call(pd.DataFrame(rows).drop(columns="freed_memory"), self.tmp)
+
     def test_missing_data_is_reported_not_raised(self):
         with self.assertRaises(F.NoData):
             F.fig08(self.df[self.df["experiment"] == "fig06"], self.tmp)  # no reordered runs
@@ -938,6 +967,72 @@ class TestClaims(unittest.TestCase):
         self.assertAlmostEqual(r["related"]["warm_call"]["value"], 8.0, places=6)
         self.assertEqual(r["verdict"], "partly", r)
         self.assertIn("150 000", r["note"])
+
+    @staticmethod
+    def first_call_rows(ratio, idle_state="idle_3s", noise=0.01):
+        """Three rounds of synthetic peers_first_call rows at N = 150 000:
+        nanoflann at 1e7 entries/s (2 s a call), sphnl at ratio[(state,
+        cloud, threads)] times that."""
+        rng = np.random.default_rng(3)
+        rows = []
+        for rnd, rep in itertools.product(range(3), range(3)):
+            for (state, cloud, threads), r in ratio.items():
+                state = idle_state if state == "idle" else state
+                for impl, eps in (("sphnl", 1e7 * r), ("nanoflann", 1e7)):
+                    eps *= 1 + noise * rng.standard_normal()
+                    rows.append({"experiment": "peers_first_call", "family": "search", "particles": 150000,
+                                 "gridder": "B", "cell_order": "sort_x", "reorder": 1, "threads": threads,
+                                 "impl": impl, "cloud": cloud, "memory_order": "generated", "call": "first",
+                                 "freed_memory": state, "repetition_index": rep, "round": rnd,
+                                 "error_occurred": False, "error_message": "", "n_particles": 150000,
+                                 "run_name": f"search/{impl}/{cloud}/{threads}/{state}",
+                                 "entries_per_s": eps, "s_call": 2e7 / eps})
+        return pd.DataFrame(rows)
+
+    def test_first_call_peer_claims_read_the_smallest_ratio_per_memory_state(self):
+        """first_call_over_nanoflann_*: the smallest sphnl / nanoflann ratio
+        over the configurations of one memory state, its interval from the
+        simultaneous band, the geometric mean beside it; the idle claim reads
+        the longest idle_<s>s of the run."""
+        ratio = {("just_freed", "lattice", 1): 6.0, ("just_freed", "lattice", 2): 9.0,
+                 ("just_freed", "random", 1): 20.0, ("just_freed", "random", 2): 30.0,
+                 ("idle", "lattice", 1): 2.0, ("idle", "lattice", 2): 3.5,
+                 ("idle", "random", 1): 8.0, ("idle", "random", 2): 10.0}
+        data = self.first_call_rows(ratio)
+        r = C.evaluate(self.claim("first_call_over_nanoflann_just_freed"), data)
+        self.assertAlmostEqual(r["value"], 6.0, delta=0.15)
+        self.assertLessEqual(r["ci_low"], r["value"])
+        self.assertLess(r["ci_high"], 9.0)  # the next smallest is far: it cannot be the minimum
+        self.assertEqual(r["verdict"], "reproduced", r)
+        self.assertIn("smallest of 4 configurations", r["note"])
+        self.assertIn("lattice/generated/1 thr.", r["note"])
+        self.assertAlmostEqual(r["related"]["geometric_mean"]["value"], (6 * 9 * 20 * 30) ** 0.25, delta=0.3)
+        r = C.evaluate(self.claim("first_call_over_nanoflann_idle"), data)
+        self.assertAlmostEqual(r["value"], 2.0, delta=0.05)
+        self.assertEqual(r["verdict"], "not reproduced", r)
+        self.assertIn("idle 3s", r["note"])
+        # Two idle lengths: the longer one is read.
+        longer = self.first_call_rows({("idle", "lattice", 1): 4.0, ("idle", "random", 1): 7.0},
+                                      idle_state="idle_12s")
+        r = C.evaluate(self.claim("first_call_over_nanoflann_idle"), pd.concat([data, longer]))
+        self.assertAlmostEqual(r["value"], 4.0, delta=0.1)
+        self.assertIn("idle 12s", r["note"])
+        # The peers experiment's first calls (no freed_memory axis) do not count.
+        r = C.evaluate(self.claim("first_call_over_nanoflann_just_freed"), data.drop(columns="freed_memory"))
+        self.assertEqual(r["verdict"], "not measured", r)
+
+    def test_first_call_peer_claim_min_ties_widen_the_interval(self):
+        """Two configurations equally near the smallest: both are named as
+        possible smallest and the interval spans what either allows (here
+        across the 5x edge: partly, not reproduced)."""
+        data = self.first_call_rows({("just_freed", "lattice", 1): 5.0, ("just_freed", "random", 1): 5.05},
+                                    noise=0.05)
+        r = C.evaluate(self.claim("first_call_over_nanoflann_just_freed"), data)
+        self.assertIn("lattice/generated/1 thr.", r["note"])
+        self.assertIn("random/generated/1 thr.", r["note"])
+        self.assertLess(r["ci_low"], 5.0)
+        self.assertGreater(r["ci_high"], 5.0)
+        self.assertEqual(r["verdict"], "partly", r)  # across the 5x edge, inside the 3x-200x band
 
     @staticmethod
     def search_rows(experiment, seconds):
