@@ -2,6 +2,7 @@
 
 #include <omp.h>
 #include <sys/resource.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -78,13 +79,24 @@ double flow_time_of(const Point& p) {
   return v.get<double>();
 }
 
+int development_threads() {
+  const long online = sysconf(_SC_NPROCESSORS_ONLN);
+  return online > 0 ? static_cast<int>(online) : std::max(1, omp_get_num_procs());
+}
+
 namespace {
 RunConfig develop_config(const FlowState& f) {
   RunConfig c;
   c.particles = f.n;
   c.lattice = f.lattice;
   c.h_coefficient = f.h_coefficient;
-  c.threads = std::max(1, omp_get_num_procs());
+  // Every processor of the machine, whatever this process may run on: the
+  // thread count is part of the snapshot's key, and omp_get_num_procs()
+  // counts only the CPUs of the process's affinity mask, so a bench started
+  // under `taskset -c 0` (the counters runner's concurrent valgrind jobs)
+  // looked for another snapshot than an unpinned one and, missing it,
+  // developed it under valgrind.
+  c.threads = development_threads();
   c.progress = false;
   return c;
 }

@@ -52,6 +52,11 @@ bool primed_window_of(const Point& p);
 /// The flow time a step window starts from: the point's `flow_time` (s), else kDefaultFlowTime.
 double flow_time_of(const Point& p);
 
+/// Threads of a development run: the machine's online processors, not the
+/// CPUs this process is allowed (taskset), so a pinned bench finds the same
+/// snapshots as an unpinned one.
+int development_threads();
+
 /// The developed flow `state`, from the cache directory, made when missing or
 /// stale with a CLL run on every core (the cache key holds everything that
 /// changes the snapshot: case, flow time and that thread count). When it must

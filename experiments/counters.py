@@ -188,13 +188,12 @@ def cpu_slots():
 
 def cpu_prefix(cpu):
     """`taskset -c CPU` (util-linux) where it exists: the job's allowed CPUs,
-    set before the bench starts, so that OpenMP binds it there. The argument
-    list valgrind sees is unchanged, but the counts are not quite: what the
-    process learns of its CPUs at start (before the window) leaves the heap
-    in another state, so a window's instructions differ by about 1e-3 with
-    and without taskset and by about 1e-6 between two CPUs (measured on a
-    1 500-particle window). One job at a time therefore runs without it, as
-    before, and repeats to the last instruction."""
+    set before the bench starts, so that OpenMP binds it there. The counts
+    are those of an unpinned run to the last instruction (CountsRepeat runs
+    one of each). They once differed by about 1e-3: the bench keyed its
+    snapshot by the CPUs it was allowed, so a pinned job developed a flow
+    of its own, on one thread, under valgrind (benchmarks/bench_common.cpp,
+    development_threads). One job at a time runs without it, as always."""
     taskset = shutil.which("taskset")
     return [taskset, "-c", str(cpu)] if taskset and cpu is not None else []
 

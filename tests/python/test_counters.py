@@ -226,9 +226,10 @@ def tiny_experiment(repo):
 class CountsRepeat(unittest.TestCase):
     def test_two_runs_give_the_same_counts(self):
         """One tiny window under callgrind, twice, in two run folders of
-        different name lengths and from environments of different sizes: the
-        instructions the same to the last, the simulated misses to 1e-4 (see
-        the comment below)."""
+        different name lengths, from environments of different sizes, and
+        the second pinned to a CPU as concurrent jobs are (taskset -c, where
+        two CPUs and taskset exist): the instructions the same to the last,
+        the simulated misses to 1e-4 (see the comment below)."""
         bench, _ = counters_bench()
         with tempfile.TemporaryDirectory() as tmp:
             tmp = pathlib.Path(tmp)
@@ -239,8 +240,12 @@ class CountsRepeat(unittest.TestCase):
             docs = []
             # a 40-byte variable moved the stack of the bench and its D1
             # misses by 0.25 % before valgrind_env fixed the environment
-            for run_dir, padding in ((tmp / "a", {}), (tmp / "a-longer-name", {"SPHNL_TEST_PADDING": "x" * 40})):
+            # the pinned run (jobs 2: taskset) once found another snapshot,
+            # keyed by the CPUs it was allowed, and counted another flow
+            for run_dir, padding, jobs in ((tmp / "a", {}, 1),
+                                           (tmp / "a-longer-name", {"SPHNL_TEST_PADDING": "x" * 40}, 2)):
                 run_dir.mkdir()
+                args.counters_jobs = jobs
                 CNT.run(args, exp, run_dir / "counters_test.json", "[test]", {**os.environ, **padding},
                         progress=lambda msg: None)
                 docs.append(json.loads((run_dir / "counters_test.json").read_text()))

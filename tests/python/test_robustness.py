@@ -22,7 +22,7 @@ BENCH = BUILD / "benchmarks" / "sphnl_bench"
 SPHNL = BUILD / "sphnl"
 # The snapshot cache key holds the thread count of the development run (all
 # the cores the bench may use); the name without it is the older form, still read.
-SNAP_1500 = f"dambreak_v1_n1500_bcc_h0.866025_t0.35_thr{len(os.sched_getaffinity(0))}.snap"
+SNAP_1500 = f"dambreak_v1_n1500_bcc_h0.866025_t0.35_thr{os.cpu_count()}.snap"  # the machine's CPUs
 SNAP_1500_LEGACY = "dambreak_v1_n1500_bcc_h0.866025_t0.35.snap"
 
 
@@ -178,6 +178,25 @@ class BenchTest(unittest.TestCase):
             self.assertIn("failed: cannot rename", r.stderr)
             self.assertIn(SNAP_1500, r.stderr)
             self.assertNotIn("ComputeStats", r.stderr)
+
+    def test_pinned_bench_finds_the_unpinned_snapshot(self):
+        # The counters runner pins concurrent valgrind jobs with taskset -c;
+        # the snapshot's key (its development's thread count) must not
+        # follow the pinning, or a pinned bench develops a snapshot of its
+        # own (under valgrind, for hours at large N) and counts another flow.
+        if len(os.sched_getaffinity(0)) < 2 or not shutil.which("taskset"):
+            self.skipTest("needs two allowed CPUs and taskset")
+        cache = self.tmp / "cache"
+        cmd = [str(BENCH), f"--experiment={REPO / 'experiments' / 'fig06.json'}", "--size=tiny",
+               f"--cache-dir={cache}", "--benchmark_min_time=0", "--benchmark_filter=gridder:B/"]
+        r = run(cmd)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        made = sorted(p.name for p in cache.iterdir())
+        self.assertEqual(made, [SNAP_1500])
+        pinned = run(["taskset", "-c", str(min(os.sched_getaffinity(0))), *cmd])
+        self.assertEqual(pinned.returncode, 0, pinned.stderr)
+        self.assertNotIn("developing", pinned.stderr)
+        self.assertEqual(sorted(p.name for p in cache.iterdir()), made)
 
     def test_debug_library_warning_is_explained(self):
         r = run([BENCH, f"--experiment={REPO / 'experiments' / 'cellindex.json'}", "--size=tiny",
