@@ -97,7 +97,7 @@ reproduce: build counters-build
 
 # The ablation studies (README.md, "Ablations"): not part of `make reproduce`
 # (its default size must stay within 30 min); run into the same folder.
-ABLATIONS := ablation_window_start,ablation_freed_memory,peers_first_call,ablation_pair_loop,ablation_simd,ablation_boundary_pairs,ablation_gridder_a,ablation_initial_order,beyond_loops,beyond_thread_updates,beyond_scaling,beyond_dynamic,beyond_precision,beyond_pair_loop,beyond_vl_loop,beyond_inner_order
+ABLATIONS := ablation_window_start,ablation_freed_memory,ablation_freed_pages,peers_first_call,ablation_pair_loop,ablation_simd,ablation_boundary_pairs,ablation_gridder_a,ablation_initial_order,beyond_loops,beyond_thread_updates,beyond_scaling,beyond_dynamic,beyond_precision,beyond_pair_loop,beyond_vl_loop,beyond_inner_order
 
 ablations: build
 	$(PYTHON) -m experiments.run --size $(SIZE) --run-id $(RUN_ID) --only $(ABLATIONS) --bench $(BUILD)/benchmarks/sphnl_bench $(if $(MAX_N),--max-n $(MAX_N)) $(if $(FORCE_MERGE),--force-merge "$(FORCE_MERGE)")

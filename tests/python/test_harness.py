@@ -176,7 +176,7 @@ class TestExperiments(unittest.TestCase):
         # `make ablations` (not part of make reproduce) within the same limit
         ablations = [e for i, e in self.exps.items()
                      if i.startswith("ablation_") or i in ("beyond_loops", "beyond_thread_updates")]
-        self.assertEqual(len(ablations), 9)
+        self.assertEqual(len(ablations), 10)
         self.assertTrue(all(e["figure"] is None for e in ablations), "ablations must stay out of make reproduce")
         for size, limit in (("tiny", 60), ("default", 25 * 60)):
             most = sum(run.most_seconds(e, size) for e in ablations) + run.snapshot_seconds(ablations, size, nothing)
