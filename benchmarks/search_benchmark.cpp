@@ -115,6 +115,18 @@ FaultCount fault_count() {
   return f;
 }
 
+/// KiB of free memory the kernel has reported to the host so far (virtio
+/// free page reporting: /sys/module/page_reporting/parameters/reported_kib,
+/// which some guest kernels expose; -1 where unreadable). Read across the
+/// wait before a first call: how much of the memory that call may take the
+/// host had been handed, a witness the process's own fault counts lack.
+double host_reported_kib() {
+  std::ifstream f("/sys/module/page_reporting/parameters/reported_kib");
+  double kib = -1;
+  if (!(f >> kib)) return -1;
+  return kib;
+}
+
 /// What one call of an implementation reports.
 struct CallResult {
   double seconds = 0;
@@ -328,6 +340,7 @@ void register_search_benchmarks(const json& sweep) {
         }
         CallResult r;
         FaultCount faults;
+        double reported_kib = -1;  // KiB reported to the host between freeing and the call (first calls)
         const MachineWitness witness = measure_machine_witness(cfg.threads);  // untimed, just before the call
         if (freed != "as_found") runner->call(true);  // untimed: its memory is what the timed call finds freed
         for (auto _ : st) {
@@ -340,11 +353,14 @@ void register_search_benchmarks(const json& sweep) {
             runner->release();
             malloc_trim(0);
           }
+          const double reported_before = first ? host_reported_kib() : -1;
           if (idle_s > 0) {  // the freed pages left idle, the wait not timed
             st.PauseTiming();
             std::this_thread::sleep_for(std::chrono::seconds(idle_s));
             st.ResumeTiming();
           }
+          const double reported_after = first ? host_reported_kib() : -1;
+          reported_kib = reported_before >= 0 && reported_after >= 0 ? reported_after - reported_before : -1;
           const FaultCount before = fault_count();
           r = runner->call(first);
           const FaultCount after = fault_count();
@@ -365,6 +381,7 @@ void register_search_benchmarks(const json& sweep) {
         st.counters["bytes"] = r.bytes;
         st.counters["page_faults"] = faults.process;
         if (faults.thp >= 0) st.counters["thp_faults"] = faults.thp;
+        if (reported_kib >= 0) st.counters["host_reported_kib"] = reported_kib;
         st.counters["witness_core_gflops"] = witness.core_gflops;
         st.counters["witness_mem_gbps"] = witness.mem_gbps;
         st.counters["run_sequence"] = static_cast<double>(sequence);

@@ -35,7 +35,7 @@ class TinyPipeline(unittest.TestCase):
                                if p.stem.startswith("ablation_")
                                or p.stem in ("beyond_loops", "beyond_thread_updates", "beyond_scaling", "beyond_dynamic", "beyond_precision",
                                               "beyond_pair_loop", "beyond_vl_loop", "beyond_inner_order",
-                                              "search_api", "first_call"))
+                                              "search_api", "first_call", "peers_first_call"))
             run = subprocess.run(
                 [PYTHON, "-m", "experiments.run", "--size", "tiny", "--run-id", "e2e", "--only", ",".join(ablations),
                  "--force-merge", "a second part of the same code (refused when the tree is dirty)",

@@ -143,6 +143,14 @@ class BenchTest(unittest.TestCase):
         self.assertEqual(sorted(rows), ["as_found", "idle_1s", "just_freed"])
         self.assertLess(rows["idle_1s"]["real_time"], 500.0)  # ms: the 1 s wait was paused
         self.assertTrue(all(b["entries"] == rows["as_found"]["entries"] for b in rows.values()))
+        # the host's reported memory across the wait: where the kernel exposes
+        # it, a count (not negative: the counter only grows) on every first call
+        reported = pathlib.Path("/sys/module/page_reporting/parameters/reported_kib")
+        for b in rows.values():
+            if reported.exists():
+                self.assertGreaterEqual(b["host_reported_kib"], 0)
+            else:
+                self.assertNotIn("host_reported_kib", b)
         warm = self.tmp / "warm.json"
         warm.write_text(src.read_text().replace('"call": ["first"], "pages": ["huge"], "freed_memory": ["as_found", "just_freed", "idle_1s"]',
                                                 '"call": ["warm"], "pages": ["huge"], "freed_memory": ["idle_1s"]', 1))
