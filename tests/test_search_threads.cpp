@@ -8,6 +8,8 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <filesystem>
+#include <fstream>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -282,6 +284,39 @@ TEST(HugePages, LargeBuffersStartAtStaggeredOffsetsInHugePages) {
   // also under AddressSanitizer, which aborts on them).
   EXPECT_THROW(allocate_buffer(~std::size_t{0} / 2, true), std::bad_alloc);
   EXPECT_THROW(allocate_buffer(~std::size_t{0} - 1, false), std::bad_alloc);
+}
+
+namespace {
+/// A fake sysfs tree: virtio devices given as (device id, feature bits).
+std::string fake_sysfs(const std::string& name, const std::vector<std::pair<std::string, std::string>>& devices) {
+  const std::filesystem::path root = std::filesystem::temp_directory_path() / ("sphnl_sysfs_" + name);
+  std::filesystem::remove_all(root);
+  for (std::size_t k = 0; k < devices.size(); ++k) {
+    const std::filesystem::path d = root / "bus" / "virtio" / "devices" / ("virtio" + std::to_string(k));
+    std::filesystem::create_directories(d);
+    std::ofstream(d / "device") << devices[k].first << '\n';
+    std::ofstream(d / "features") << devices[k].second << '\n';
+  }
+  return root.string();
+}
+}  // namespace
+
+TEST(HugePages, FreePageReportingIsReadFromTheBalloonsFeatureBits) {
+  // A balloon (0x0005) with bit 5 (VIRTIO_BALLOON_F_REPORTING) set, as on the
+  // machine of docs/FINDINGS.md, "Huge pages on idle memory".
+  const std::string reporting = "0110010100000000000000000000000010000000";
+  EXPECT_TRUE(free_memory_reported_to_host(
+      fake_sysfs("reporting", {{"0x0002", "0010001001"}, {"0x0005", reporting}}).c_str()));
+  std::string without = reporting;
+  without[5] = '0';
+  EXPECT_FALSE(free_memory_reported_to_host(fake_sysfs("balloon_only", {{"0x0005", without}}).c_str()));
+  EXPECT_FALSE(free_memory_reported_to_host(fake_sysfs("block_device", {{"0x0002", reporting}}).c_str()));
+  EXPECT_FALSE(free_memory_reported_to_host(fake_sysfs("short", {{"0x0005", "01100"}}).c_str()));
+  EXPECT_FALSE(free_memory_reported_to_host(fake_sysfs("none", {}).c_str()));
+  EXPECT_FALSE(free_memory_reported_to_host("/nonexistent/sysfs"));
+  // The API's default follows the machine it runs on.
+  EXPECT_EQ(huge_pages_by_default(), !free_memory_reported_to_host());
+  EXPECT_EQ(Search::Options{}.huge_pages, huge_pages_by_default());
 }
 
 TEST(HugePages, BufferVectorSwitchesItsPagesAndKeepsItsValues) {

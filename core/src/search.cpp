@@ -11,8 +11,14 @@
 #include "sphnl/neighbours/coordinate_extent.hpp"
 #include "sphnl/neighbours/distance.hpp"
 #include "sphnl/neighbours/neighbour_search.hpp"
+#include "sphnl/neighbours/uninit_buffer.hpp"
 
 namespace sphnl {
+
+bool huge_pages_by_default() {
+  static const bool on = !free_memory_reported_to_host();
+  return on;
+}
 
 namespace {
 

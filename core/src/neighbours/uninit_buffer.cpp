@@ -2,7 +2,10 @@
 
 #include <atomic>
 #include <cstddef>
+#include <filesystem>
+#include <fstream>
 #include <limits>
+#include <string>
 
 #if defined(__linux__)
 #include <sys/mman.h>
@@ -20,6 +23,23 @@ std::size_t next_colour() {
 }
 
 }  // namespace
+
+bool free_memory_reported_to_host(const char* sysfs_root) {
+  constexpr std::size_t kBalloonFreePageReporting = 5;  // VIRTIO_BALLOON_F_REPORTING
+  std::error_code ec;
+  const std::filesystem::path devices = std::filesystem::path(sysfs_root) / "bus" / "virtio" / "devices";
+  for (std::filesystem::directory_iterator it(devices, ec), end; !ec && it != end; it.increment(ec)) {
+    std::ifstream device(it->path() / "device");
+    std::string id;
+    if (!(device >> id) || id != "0x0005") continue;  // not a balloon
+    // features: one character '0' or '1' per feature bit, bit 0 first
+    std::ifstream features(it->path() / "features");
+    std::string bits;
+    if (features >> bits && bits.size() > kBalloonFreePageReporting && bits[kBalloonFreePageReporting] == '1')
+      return true;
+  }
+  return false;
+}
 
 void* allocate_buffer(std::size_t bytes, bool huge_pages) {
   // No object may exceed PTRDIFF_MAX bytes, and rounding up to whole huge

@@ -22,6 +22,15 @@
 
 namespace sphnl {
 
+/// Whether this machine is a virtual machine whose kernel reports free memory
+/// to its host: a virtio balloon device (device id 0x0005 under
+/// `sysfs_root`/bus/virtio/devices) that offers free page reporting (feature
+/// bit 5, VIRTIO_BALLOON_F_REPORTING). There memory freed for a few seconds is
+/// handed back, and a first build on huge pages of it took twice as long as
+/// on memory just freed while base pages cost the same either way
+/// (docs/FINDINGS.md, "Huge pages on idle memory"). False where unreadable.
+bool free_memory_reported_to_host(const char* sysfs_root = "/sys");
+
 /// Bytes of one transparent huge page (x86-64, arm64 with 4 KiB base pages).
 inline constexpr std::size_t kHugePageBytes = std::size_t{2} << 20;
 /// Smaller buffers keep base pages: rounding them up to 2 MiB would waste more
