@@ -101,7 +101,7 @@ def search_seconds(p):
     # a freed_memory other than as_found makes an untimed call first, and
     # idle_<s>s then waits s seconds (benchmarks/search_benchmark.cpp)
     calls = 1 if p.get("call", "warm") == "first" and freed == "as_found" else 2
-    idle = int(freed[5:-1]) if freed.startswith("idle_") else 0
+    idle = R.idle_seconds(freed) or 0
     return calls * (one / (0.9 * threads) if threads > 1 else one) + idle
 
 

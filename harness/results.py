@@ -64,6 +64,18 @@ AXIS_DEFAULTS = {
                "freed_memory": "as_found"},
     "mpi": {"balance_by": "interactions"},  # not filled in on load: older runs cut by particles
 }
+
+
+def idle_seconds(freed_memory):
+    """Seconds of idle a value of the search family's `freed_memory` axis asks
+    for: s for idle_<s>s, 0 for as_found and just_freed, None for any other
+    value (the bench's freed_memory_idle_seconds validates experiment files)."""
+    m = re.fullmatch(r"idle_(\d+)s", str(freed_memory))
+    if m:
+        return int(m.group(1))
+    return 0 if freed_memory in ("as_found", "just_freed") else None
+
+
 # Axes filled in from AXIS_DEFAULTS when a name lacks them (lattice and h
 # coefficient stay absent in step rows, as the figures and claims expect).
 DEFAULTED_ON_LOAD = {"step": ("flow_time",), "counters": ("flow_time",), "search": ("impl", "cloud", "memory_order", "call", "pages", "freed_memory")}

@@ -31,13 +31,12 @@ Improvement is the paper's (t_ref - t) / t_ref in percent.
 """
 import functools
 import math
-import re
 
 import numpy as np
 import pandas as pd
 
 from harness import stats as S
-from harness.results import ResultsError, format_n, pick
+from harness.results import ResultsError, format_n, idle_seconds, pick
 
 MIN_N = 5000  # a claim about performance needs at least this N in the run
 CLAIMS = {}
@@ -533,10 +532,10 @@ def _first_call_over_peer(med, c, freed_memory):
     if "freed_memory" not in med or "impl" not in med:
         raise NotMeasured("no freed_memory or impl axis in the results (experiments/peers_first_call.json)")
     if freed_memory == "idle":  # the longest idle_<s>s the run measured
-        idle = [v for v in set(med["freed_memory"].dropna()) if re.fullmatch(r"idle_\d+s", v)]
+        idle = [v for v in set(med["freed_memory"].dropna()) if (idle_seconds(v) or 0) > 0]
         if not idle:
             raise NotMeasured("no first call measured with freed_memory idle_<s>s")
-        freed_memory = max(idle, key=lambda v: int(v[5:-1]))
+        freed_memory = max(idle, key=idle_seconds)
     m = pick(med, particles=n, call="first", freed_memory=freed_memory)
     keys = ["cloud", "memory_order", "threads"]
     mine = m[m["impl"] == "sphnl"].set_index(keys)["entries_per_s"]

@@ -24,7 +24,7 @@ import numpy as np  # noqa: E402
 
 from harness import stats as S  # noqa: E402
 from harness.fsio import write_atomic  # noqa: E402
-from harness.results import format_n, improvement, medians, pick  # noqa: E402
+from harness.results import format_n, idle_seconds, improvement, medians, pick  # noqa: E402
 
 plt.rcParams.update({"svg.hashsalt": "sphnl", "savefig.dpi": 110, "axes.grid": True,
                      "grid.alpha": 0.3, "font.size": 10, "legend.fontsize": 9})
@@ -483,11 +483,13 @@ def _first_call_table(tab, n):
 
 def _freed_order(state):
     """Just freed first, then the idle states by their seconds."""
-    return (0, 0) if state == "just_freed" else (1, int(state[5:-1])) if state.startswith("idle_") else (2, 0)
+    idle = idle_seconds(state)
+    return (0, 0) if state == "just_freed" else (1, idle) if idle else (2, 0)
 
 
 def _freed_label(state):
-    return "just freed" if state == "just_freed" else f"idle {state[5:-1]} s" if state.startswith("idle_") else state
+    idle = idle_seconds(state)
+    return "just freed" if state == "just_freed" else f"idle {idle} s" if idle else state
 
 
 def peers_first_call(data, out):

@@ -314,6 +314,8 @@ TEST(HugePages, FreePageReportingIsReadFromTheBalloonsFeatureBits) {
   EXPECT_FALSE(free_memory_reported_to_host(fake_sysfs("short", {{"0x0005", "01100"}}).c_str()));
   EXPECT_FALSE(free_memory_reported_to_host(fake_sysfs("none", {}).c_str()));
   EXPECT_FALSE(free_memory_reported_to_host("/nonexistent/sysfs"));
+  for (const char* name : {"reporting", "balloon_only", "block_device", "short", "none"})
+    std::filesystem::remove_all(std::filesystem::temp_directory_path() / (std::string("sphnl_sysfs_") + name));
   // The API's default follows the machine it runs on.
   EXPECT_EQ(huge_pages_by_default(), !free_memory_reported_to_host());
   EXPECT_EQ(Search::Options{}.huge_pages, huge_pages_by_default());

@@ -68,6 +68,12 @@ class TempDirCase(unittest.TestCase):
 
 
 class TestNames(unittest.TestCase):
+    def test_idle_seconds_of_freed_memory(self):
+        """One reading of freed_memory's idle_<s>s for the plan, the claims and the figures."""
+        for value, seconds in (("idle_3s", 3), ("idle_12s", 12), ("as_found", 0), ("just_freed", 0),
+                               ("idle_s", None), ("idle_3", None), ("idle_3s ", None), ("warm", None), (None, None)):
+            self.assertEqual(R.idle_seconds(value), seconds, value)
+
     def test_contract_name_round_trip(self):
         family, p = R.parse_run_name(CONTRACT_NAME)
         self.assertEqual(family, "step")
