@@ -243,6 +243,30 @@ def cpu_jiffies():
     return total - idle - steal, steal, total
 
 
+def free_memory_reported_to_host(sysfs_root="/sys"):
+    """Whether a virtio balloon offers free page reporting (device id 0x0005,
+    feature bit 5): the kernel then hands free memory that lies idle to its
+    host, and the library's Search::Options default to base pages
+    (huge_pages_by_default, the same test in C++)."""
+    devices = pathlib.Path(sysfs_root) / "bus" / "virtio" / "devices"
+    try:
+        entries = sorted(devices.iterdir())
+    except OSError:
+        return False
+    for dev in entries:
+        features = _read(dev / "features") or ""
+        if _read(dev / "device") == "0x0005" and len(features) > 5 and features[5] == "1":
+            return True
+    return False
+
+
+def transparent_huge_pages():
+    """The selected mode of /sys/kernel/mm/transparent_hugepage/enabled
+    ('always', 'madvise', 'never'), or None where unreadable."""
+    m = re.search(r"\[(\w+)\]", _read("/sys/kernel/mm/transparent_hugepage/enabled") or "")
+    return m.group(1) if m else None
+
+
 def machine_info():
     """CPU, clock, caches, memory, compiler and OS of this machine."""
     cpu = lscpu()
@@ -271,6 +295,10 @@ def machine_info():
         "caches_source": "lscpu" if lscpu_caches else "sysfs" if from_sysfs else None,
         "caches_sysfs": from_sysfs,
         "memory_bytes": int(mem.group(1)) * 1024 if mem else None,
+        # what a first call's pages cost depends on both (docs/FINDINGS.md,
+        # "Huge pages on idle memory"); the search's page default follows the first
+        "free_memory_reported_to_host": free_memory_reported_to_host(),
+        "transparent_huge_pages": transparent_huge_pages(),
         "compiler": (_cmd("c++", "--version").splitlines() or [None])[0],
         "os": platform.platform(),
         "python": platform.python_version(),

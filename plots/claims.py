@@ -521,6 +521,15 @@ def sphnl_over_nanoflann(med, c):
         f"{note}; geometric mean over {len(common)} paired configurations", related
 
 
+def _pages_used(rows):
+    """', sphnl on base pages' (or huge, or both) from the bench's huge_pages
+    counter, '' where the rows predate it."""
+    if "huge_pages" not in rows or rows["huge_pages"].isna().all():
+        return ""
+    kinds = sorted({"huge" if v else "base" for v in rows["huge_pages"].dropna().round()})
+    return f", sphnl on {' and '.join(kinds)} pages"
+
+
 def _first_call_over_peer(med, c, freed_memory):
     """The smallest sphnl / nanoflann entries-per-second ratio over the first
     calls (cloud, memory order, threads) that found their memory in state
@@ -547,7 +556,7 @@ def _first_call_over_peer(med, c, freed_memory):
     ratio = (mine[common] / peer[common]).astype(float)
     ratio.index = [f"{cloud}/{order}/{th} thr." for cloud, order, th in common]
     return (Extremum(ratio, "configurations", of="min"),
-            f"{note}; first calls, memory {freed_memory.replace('_', ' ')}",
+            f"{note}; first calls, memory {freed_memory.replace('_', ' ')}{_pages_used(m[m['impl'] == 'sphnl'])}",
             {"geometric_mean": float(np.exp(np.mean(np.log(ratio.to_numpy()))))})
 
 

@@ -96,8 +96,9 @@ const std::vector<Axis>& axes() {
       {"cloud", {"search"}, {}, one_of({"lattice", "random"})},
       {"memory_order", {"search"}, {}, one_of({"generated", "shuffled"})},
       {"call", {"search"}, {}, one_of({"warm", "first"})},
-      // the lists' pages (a sweep without it means base, as before the axis)
-      {"pages", {"search"}, {}, one_of({"base", "huge"})},
+      // the lists' pages (a sweep without it means base, as before the axis;
+      // default: what the library chooses on this machine, huge_pages_by_default)
+      {"pages", {"search"}, {}, one_of({"base", "huge", "default"})},
       // what memory a first call finds (a sweep without it means as_found):
       // just freed by an untimed call of the same size, or left idle that
       // many seconds after it was freed

@@ -526,7 +526,8 @@ class TestProvenance(TempDirCase):
         self.assertEqual(machine["bench"], "tests/python/fake_bench.py")
         self.assertEqual(machine["bench_sha256"], M.sha256(FAKE))
         for key in ("cpu_model", "cpu_family", "cpu_model_number", "cpu_stepping", "cpu_mhz",
-                    "cpu_max_mhz", "caches", "caches_sysfs", "loadavg_start", "loadavg_end", "parts"):
+                    "cpu_max_mhz", "caches", "caches_sysfs", "loadavg_start", "loadavg_end", "parts",
+                    "free_memory_reported_to_host", "transparent_huge_pages"):
             self.assertIn(key, machine)
         if M.sysfs_caches():  # where sysfs has them, the caches are never empty
             self.assertTrue(machine["caches"])
@@ -547,6 +548,23 @@ class TestProvenance(TempDirCase):
                 self.assertEqual(M.sysfs_caches(), {"L1d": "48K", "L1i": "32K", "L2": "1024K"})
             finally:
                 M.CPU_SYS = old
+
+    def test_free_page_reporting_reader(self):
+        """The balloon's free page reporting bit (virtio device 0x0005,
+        feature bit 5), read as the library reads it: other devices and a
+        balloon without the bit say no, a missing tree says no."""
+        with tempfile.TemporaryDirectory() as tmp:
+            root = pathlib.Path(tmp)
+            self.assertFalse(M.free_memory_reported_to_host(root))  # no bus/virtio at all
+            for name, device, features in (("virtio0", "0x0001", "111111"), ("virtio1", "0x0005", "111110")):
+                d = root / "bus" / "virtio" / "devices" / name
+                d.mkdir(parents=True)
+                (d / "device").write_text(device + "\n")
+                (d / "features").write_text(features + "000\n")
+            self.assertFalse(M.free_memory_reported_to_host(root))
+            (root / "bus" / "virtio" / "devices" / "virtio1" / "features").write_text("111111000\n")
+            self.assertTrue(M.free_memory_reported_to_host(root))
+        self.assertIn(M.transparent_huge_pages(), ("always", "madvise", "never", None))
 
     def test_merge_refusal_rules(self):
         part = {"date": "d1", "git_revision": "a" * 40, "git_dirty": False, "bench_sha256": "1" * 64}
@@ -1028,6 +1046,14 @@ class TestClaims(unittest.TestCase):
         r = C.evaluate(self.claim("first_call_over_nanoflann_idle"), pd.concat([data, longer]))
         self.assertAlmostEqual(r["value"], 4.0, delta=0.1)
         self.assertIn("idle 12s", r["note"])
+        self.assertNotIn("pages", r["note"])  # rows before the huge_pages counter: nothing said
+        # The pages sphnl's lists used (pages: default resolved) are named.
+        data["huge_pages"] = np.where(data["impl"] == "sphnl", 0.0, np.nan)
+        r = C.evaluate(self.claim("first_call_over_nanoflann_just_freed"), data)
+        self.assertIn("sphnl on base pages", r["note"])
+        data.loc[(data["impl"] == "sphnl") & (data["cloud"] == "random"), "huge_pages"] = 1.0
+        r = C.evaluate(self.claim("first_call_over_nanoflann_just_freed"), data)
+        self.assertIn("sphnl on base and huge pages", r["note"])
         # The peers experiment's first calls (no freed_memory axis) do not count.
         r = C.evaluate(self.claim("first_call_over_nanoflann_just_freed"), data.drop(columns="freed_memory"))
         self.assertEqual(r["verdict"], "not measured", r)

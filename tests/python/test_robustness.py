@@ -158,6 +158,32 @@ class BenchTest(unittest.TestCase):
         self.assertEqual(r.returncode, 2, r.stderr)
         self.assertIn("freed_memory: 'idle_1s' applies to first calls only (call: first)", r.stderr)
 
+    def test_pages_default_is_the_librarys_choice_here(self):
+        """pages: default (peers_first_call) gives sphnl's lists the pages the
+        public API chooses on this machine: base where the kernel reports free
+        memory to its host (read here as machine.json reads it), huge
+        elsewhere; the huge_pages counter says which, nanoflann's rows carry none."""
+        out = self.tmp / "out.json"
+        r = run([BENCH, f"--experiment={REPO / 'experiments' / 'peers_first_call.json'}", "--size=tiny",
+                 "--benchmark_filter=freed_memory:just_freed", "--benchmark_min_time=0",
+                 "--benchmark_repetitions=1", f"--benchmark_out={out}", "--benchmark_out_format=json"])
+        self.assertEqual(r.returncode, 0, r.stderr)
+        rows = [b for b in json.loads(out.read_text())["benchmarks"] if b.get("run_type") == "iteration"]
+        self.assertEqual(len(rows), 4)  # lattice and random, sphnl and nanoflann
+        for b in rows:
+            self.assertIn("/pages:default/", b["run_name"])
+            if "/impl:nanoflann/" in b["run_name"]:
+                self.assertNotIn("huge_pages", b)
+            else:
+                self.assertEqual(b["huge_pages"], 0 if M.free_memory_reported_to_host() else 1, b["run_name"])
+        bad = self.tmp / "bad.json"
+        bad.write_text((REPO / "experiments" / "peers_first_call.json").read_text()
+                       .replace('"pages": ["default"]', '"pages": ["large"]', 1))
+        r = run([BENCH, f"--experiment={bad}", "--validate"])
+        self.assertEqual(r.returncode, 2, r.stderr)
+        self.assertIn("large", r.stderr)
+        self.assertIn("default", r.stderr)
+
     def test_duplicate_key_is_refused(self):
         exp = self.experiment(lambda d: d.replace('"metric": "s_per_step"', '"metric": "a", "metric": "s_per_step"'))
         r = run([BENCH, f"--experiment={exp}", "--validate"])
