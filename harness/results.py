@@ -76,6 +76,17 @@ def idle_seconds(freed_memory):
     return 0 if freed_memory in ("as_found", "just_freed") else None
 
 
+def pages_used(rows):
+    """The pages sphnl's lists used in search rows, from the bench's
+    huge_pages counter (the `pages` axis resolved, `default` included):
+    'base', 'huge', 'base and huge', or None where no row carries it (rows
+    of nanoflann, or older than the counter)."""
+    if "huge_pages" not in rows:
+        return None
+    kinds = sorted({"huge" if v >= 0.5 else "base" for v in rows["huge_pages"].dropna()})
+    return " and ".join(kinds) or None
+
+
 # Axes filled in from AXIS_DEFAULTS when a name lacks them (lattice and h
 # coefficient stay absent in step rows, as the figures and claims expect).
 DEFAULTED_ON_LOAD = {"step": ("flow_time",), "counters": ("flow_time",), "search": ("impl", "cloud", "memory_order", "call", "pages", "freed_memory")}

@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 
 from harness import stats as S
-from harness.results import ResultsError, format_n, idle_seconds, pick
+from harness.results import ResultsError, format_n, idle_seconds, pages_used, pick
 
 MIN_N = 5000  # a claim about performance needs at least this N in the run
 CLAIMS = {}
@@ -518,16 +518,14 @@ def sphnl_over_nanoflann(med, c):
         sel = np.asarray(common.get_level_values("call") == call)
         related[f"{call}_call"] = float(np.exp(np.mean(np.log(ratio[sel]))))
     return float(np.exp(np.mean(np.log(ratio)))), \
-        f"{note}; geometric mean over {len(common)} paired configurations", related
+        f"{note}; geometric mean over {len(common)} paired configurations{_pages_used(m[m['impl'] == 'sphnl'])}", related
 
 
 def _pages_used(rows):
-    """', sphnl on base pages' (or huge, or both) from the bench's huge_pages
-    counter, '' where the rows predate it."""
-    if "huge_pages" not in rows or rows["huge_pages"].isna().all():
-        return ""
-    kinds = sorted({"huge" if v else "base" for v in rows["huge_pages"].dropna().round()})
-    return f", sphnl on {' and '.join(kinds)} pages"
+    """', sphnl on base pages' (or huge, or both); '' where the rows predate
+    the huge_pages counter."""
+    used = pages_used(rows)
+    return f", sphnl on {used} pages" if used else ""
 
 
 def _first_call_over_peer(med, c, freed_memory):

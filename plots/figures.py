@@ -24,7 +24,7 @@ import numpy as np  # noqa: E402
 
 from harness import stats as S  # noqa: E402
 from harness.fsio import write_atomic  # noqa: E402
-from harness.results import format_n, idle_seconds, improvement, medians, pick  # noqa: E402
+from harness.results import format_n, idle_seconds, improvement, medians, pages_used, pick  # noqa: E402
 
 plt.rcParams.update({"svg.hashsalt": "sphnl", "savefig.dpi": 110, "axes.grid": True,
                      "grid.alpha": 0.3, "font.size": 10, "legend.fontsize": 9})
@@ -536,7 +536,9 @@ def peers_first_call(data, out):
         ax.set(ylabel=ylabel)
         ax.set_ylim(bottom=0)
         ax.legend()
-    fig.suptitle(f"Beyond the paper: first calls, memory just freed or idle, N = {format_n(n)}")
+    used = pages_used(med.point[med.point["impl"] == "sphnl"])
+    fig.suptitle(f"Beyond the paper: first calls, memory just freed or idle, N = {format_n(n)}"
+                 + (f"; sphnl's lists on {used} pages" if used else ""))
     _footnote(fig, "error bars")
     _save(fig, out, "peers_first_call")
     parts = []

@@ -996,6 +996,10 @@ class TestClaims(unittest.TestCase):
         self.assertAlmostEqual(r["related"]["warm_call"]["value"], 8.0, places=6)
         self.assertEqual(r["verdict"], "partly", r)
         self.assertIn("150 000", r["note"])
+        self.assertNotIn("pages", r["note"])
+        data = pd.DataFrame(rows)
+        data["huge_pages"] = np.where(data["impl"] == "sphnl", 1.0, np.nan)  # pages: default, resolved huge
+        self.assertIn("sphnl on huge pages", C.evaluate(self.claim("sphnl_over_nanoflann"), data)["note"])
 
     @staticmethod
     def first_call_rows(ratio, idle_state="idle_3s", noise=0.01):
