@@ -75,6 +75,19 @@ def fmt_interval(bounds, unit):
     return f"= {fmt(lo, unit)}" if lo == hi else f"{fmt(lo, unit)} to {fmt(hi, unit)}"
 
 
+def memory_pages(m):
+    """'; transparent huge pages madvise, free memory reported to the host':
+    what decides a first call's page cost (machine.json; '' where older
+    files lack it)."""
+    parts = []
+    if m.get("transparent_huge_pages"):
+        parts.append(f"transparent huge pages {m['transparent_huge_pages']}")
+    if m.get("free_memory_reported_to_host") is not None:
+        parts.append("free memory reported to the host (the search defaults to base pages)"
+                     if m["free_memory_reported_to_host"] else "free memory not reported to a host")
+    return "; " + ", ".join(parts) if parts else ""
+
+
 def machine_section(run_dir):
     path = run_dir / "machine.json"
     if not path.exists():
@@ -97,7 +110,7 @@ def machine_section(run_dir):
     rows = [("CPU", f"{cpu}{' (' + ', '.join(ident) + ')' if ident else ''}, {m.get('cores') or '?'} cores, "
                     f"{m.get('logical_cpus') or '?'} logical CPUs"),
             ("Clock", ", ".join(clock) or "not reported"),
-            ("Caches", caches or "not reported"), ("Memory", mem),
+            ("Caches", caches or "not reported"), ("Memory", mem + memory_pages(m)),
             ("Compiler", m.get("compiler") or "not reported"),
             ("Git revision", f"{m.get('git_revision') or '?'}{dirty}"),
             ("Date (UTC)", m.get("date") or "?"), ("Size", m.get("size") or "?"),

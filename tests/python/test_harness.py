@@ -566,6 +566,20 @@ class TestProvenance(TempDirCase):
             self.assertTrue(M.free_memory_reported_to_host(root))
         self.assertIn(M.transparent_huge_pages(), ("always", "madvise", "never", None))
 
+    def test_the_report_says_what_decides_a_first_calls_pages(self):
+        """The Memory row names the THP mode and whether free memory is
+        reported to the host; a machine.json older than those fields says nothing."""
+        self.assertEqual(report.memory_pages({}), "")
+        said = report.memory_pages({"transparent_huge_pages": "madvise", "free_memory_reported_to_host": True})
+        self.assertIn("transparent huge pages madvise", said)
+        self.assertIn("search defaults to base pages", said)
+        self.assertIn("not reported", report.memory_pages({"free_memory_reported_to_host": False}))
+        out, _ = fake_run(self.tmp, "tiny", "--only", "fig06")
+        lines, _ = report.machine_section(out)
+        memory = [line for line in lines if line.startswith("| Memory |")]
+        self.assertEqual(len(memory), 1, lines)
+        self.assertIn("free memory", memory[0])
+
     def test_merge_refusal_rules(self):
         part = {"date": "d1", "git_revision": "a" * 40, "git_dirty": False, "bench_sha256": "1" * 64}
         self.assertIsNone(M.merge_refusal([part], dict(part)))
