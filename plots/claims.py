@@ -507,7 +507,8 @@ def sphnl_over_nanoflann(med, c):
     m = pick(med, particles=n)
     if "impl" not in m:
         raise NotMeasured("no impl axis in the results")
-    mine = m[m["impl"] == "sphnl"].set_index(PEER_KEYS)["entries_per_s"]
+    sphnl = m[m["impl"] == "sphnl"]
+    mine = sphnl.set_index(PEER_KEYS)["entries_per_s"]
     peer = m[m["impl"] == "nanoflann"].set_index(PEER_KEYS)["entries_per_s"]
     common = mine.index.intersection(peer.index)
     if not len(common):
@@ -518,7 +519,7 @@ def sphnl_over_nanoflann(med, c):
         sel = np.asarray(common.get_level_values("call") == call)
         related[f"{call}_call"] = float(np.exp(np.mean(np.log(ratio[sel]))))
     return float(np.exp(np.mean(np.log(ratio)))), \
-        f"{note}; geometric mean over {len(common)} paired configurations{_pages_used(m[m['impl'] == 'sphnl'])}", related
+        f"{note}; geometric mean over {len(common)} paired configurations{_pages_used(sphnl)}", related
 
 
 def _pages_used(rows):
@@ -545,7 +546,8 @@ def _first_call_over_peer(med, c, freed_memory):
         freed_memory = max(idle, key=idle_seconds)
     m = pick(med, particles=n, call="first", freed_memory=freed_memory)
     keys = ["cloud", "memory_order", "threads"]
-    mine = m[m["impl"] == "sphnl"].set_index(keys)["entries_per_s"]
+    sphnl = m[m["impl"] == "sphnl"]
+    mine = sphnl.set_index(keys)["entries_per_s"]
     peer = m[m["impl"] == "nanoflann"].set_index(keys)["entries_per_s"]
     common = mine.index.intersection(peer.index)
     if not len(common):
@@ -554,7 +556,7 @@ def _first_call_over_peer(med, c, freed_memory):
     ratio = (mine[common] / peer[common]).astype(float)
     ratio.index = [f"{cloud}/{order}/{th} thr." for cloud, order, th in common]
     return (Extremum(ratio, "configurations", of="min"),
-            f"{note}; first calls, memory {freed_memory.replace('_', ' ')}{_pages_used(m[m['impl'] == 'sphnl'])}",
+            f"{note}; first calls, memory {freed_memory.replace('_', ' ')}{_pages_used(sphnl)}",
             {"geometric_mean": float(np.exp(np.mean(np.log(ratio.to_numpy()))))})
 
 
